@@ -1,0 +1,191 @@
+"""Planar multibody geometry read from an MJCF file.
+
+The MJCF file is the one source of geometry and inertia.  MJX integrates the multibody
+dynamics; this module only reads the model's kinematic tree once (NumPy, static) and gives
+cheap, differentiable planar forward kinematics for the quantities the controller and the
+contact model need at every step: contact-point positions/velocities, the centre of mass
+and joint angles in the Geyer-Herr convention.  Velocities come from ``jax.jvp`` of the
+position map and generalised forces from ``jax.vjp`` (J^T F), so they are exact and
+consistent with one another.
+
+Planar convention: the sagittal plane is MuJoCo's x-z plane, every hinge turns about +-y.
+A rotation by angle a about +y maps a local vector (x, z) to (x cos a + z sin a,
+-x sin a + z cos a).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from jaxgait.resources import model_path
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """Static description of a planar MJCF body (not a pytree: closed over by jit).
+
+    Attributes:
+      mj_model: the compiled MuJoCo model.
+      parent: (nbody,) parent body index.
+      pos: (nbody, 2) body origin in the parent frame (x, z) [m].
+      hinge_q: (nbody,) qpos address of the body's hinge, or -1.
+      hinge_sign: (nbody,) +1 if the hinge axis is +y, -1 if -y.
+      slide_q: (nbody, 2) qpos addresses of x / z slides, or -1.
+      ipos: (nbody, 2) centre of mass in the body frame [m]; mass: (nbody,) [kg].
+      site_body, site_pos: site owner body and local position (x, z).
+    """
+
+    mj_model: mujoco.MjModel
+    parent: np.ndarray
+    pos: np.ndarray
+    hinge_q: np.ndarray
+    hinge_sign: np.ndarray
+    slide_q: np.ndarray
+    ipos: np.ndarray
+    mass: np.ndarray
+    site_body: np.ndarray
+    site_pos: np.ndarray
+
+    @cached_property
+    def mjx_model(self):
+        from mujoco import mjx
+
+        return mjx.put_model(self.mj_model)
+
+    @property
+    def total_mass(self) -> float:
+        return float(self.mass.sum())
+
+    @property
+    def dt(self) -> float:
+        return float(self.mj_model.opt.timestep)
+
+    def site_id(self, name: str) -> int:
+        i = mujoco.mj_name2id(self.mj_model, mujoco.mjtObj.mjOBJ_SITE, name)
+        if i < 0:
+            raise KeyError(f"site {name!r} not in MJCF model {self.mj_model.names[:40]!r}")
+        return i
+
+    def qpos_adr(self, joint: str) -> int:
+        i = mujoco.mj_name2id(self.mj_model, mujoco.mjtObj.mjOBJ_JOINT, joint)
+        if i < 0:
+            raise KeyError(f"joint {joint!r} not in MJCF model")
+        return int(self.mj_model.jnt_qposadr[i])
+
+    # ---------------------------------------------------------------- kinematics
+    def frames(self, qpos: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """World origin (nbody, 2) and pitch angle (nbody,) of every body."""
+        nb = len(self.parent)
+        origins = [jnp.zeros(2, qpos.dtype)]
+        angles = [jnp.zeros((), qpos.dtype)]
+        for b in range(1, nb):
+            p = int(self.parent[b])
+            ap = angles[p]
+            lx, lz = self.pos[b]
+            ox = origins[p][0] + lx * jnp.cos(ap) + lz * jnp.sin(ap)
+            oz = origins[p][1] - lx * jnp.sin(ap) + lz * jnp.cos(ap)
+            if self.slide_q[b, 0] >= 0:
+                ox = ox + qpos[self.slide_q[b, 0]]
+            if self.slide_q[b, 1] >= 0:
+                oz = oz + qpos[self.slide_q[b, 1]]
+            a = ap
+            if self.hinge_q[b] >= 0:
+                a = a + self.hinge_sign[b] * qpos[self.hinge_q[b]]
+            origins.append(jnp.stack([ox, oz]))
+            angles.append(a)
+        return jnp.stack(origins), jnp.stack(angles)
+
+    @staticmethod
+    def _local_to_world(origin, angle, local):
+        c, s = jnp.cos(angle), jnp.sin(angle)
+        return origin + jnp.stack(
+            [local[..., 0] * c + local[..., 1] * s, -local[..., 0] * s + local[..., 1] * c], -1
+        )
+
+    def sites(self, qpos: jax.Array, ids) -> jax.Array:
+        """World (x, z) of the sites ``ids`` -> (len(ids), 2) [m]."""
+        o, a = self.frames(qpos)
+        ids = np.asarray(ids)
+        b = self.site_body[ids]
+        return self._local_to_world(o[b], a[b], jnp.asarray(self.site_pos[ids], qpos.dtype))
+
+    def com(self, qpos: jax.Array) -> jax.Array:
+        """Whole-body centre of mass (x, z) [m]."""
+        o, a = self.frames(qpos)
+        w = self._local_to_world(o[1:], a[1:], jnp.asarray(self.ipos[1:], qpos.dtype))
+        m = jnp.asarray(self.mass[1:], qpos.dtype)
+        return (m[:, None] * w).sum(0) / m.sum()
+
+    def sites_and_velocities(self, qpos, qvel, ids):
+        """Site positions and velocities (len(ids), 2) via forward-mode AD."""
+        return jax.jvp(lambda q: self.sites(q, ids), (qpos,), (qvel,))
+
+    def site_forces_to_qfrc(self, qpos, forces, ids) -> jax.Array:
+        """Generalised force J^T F of world forces (len(ids), 2) acting at the sites."""
+        _, vjp = jax.vjp(lambda q: self.sites(q, ids), qpos)
+        return vjp(forces)[0]
+
+
+def _planar_check(m: mujoco.MjModel, path) -> None:
+    for j in range(m.njnt):
+        name = m.joint(j).name
+        if np.any(np.abs(m.jnt_pos[j]) > 0):
+            raise ValueError(f"{path}: joint {name!r} has an offset pos; planar bodies need 0")
+        ax = m.jnt_axis[j]
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
+            if not (abs(abs(ax[1]) - 1) < 1e-9 and abs(ax[0]) < 1e-9 and abs(ax[2]) < 1e-9):
+                raise ValueError(f"{path}: hinge {name!r} axis {ax} is not +-y (planar model)")
+        elif m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+            if abs(ax[1]) > 1e-9 or not (abs(abs(ax[0]) - 1) < 1e-9 or abs(abs(ax[2]) - 1) < 1e-9):
+                raise ValueError(f"{path}: slide {name!r} axis {ax} is not x or z")
+        else:
+            raise ValueError(f"{path}: joint {name!r} type {m.jnt_type[j]} not planar")
+    for b in range(1, m.nbody):
+        if not np.allclose(m.body_quat[b], [1, 0, 0, 0]) or abs(m.body_pos[b][1]) > 1e-9:
+            raise ValueError(f"{path}: body {m.body(b).name!r} is rotated or off the x-z plane")
+        if not np.allclose(m.body_iquat[b], [1, 0, 0, 0]):
+            # diagonal inertia in the body frame is assumed by the planar CoM only through ipos
+            pass
+
+
+def load_body(name: str = "fbl_planar") -> Body:
+    """Compile the MJCF ``name`` from the models folder into a :class:`Body`."""
+    path = model_path(name)
+    m = mujoco.MjModel.from_xml_path(str(path))
+    _planar_check(m, path)
+    nb = m.nbody
+    hinge_q = -np.ones(nb, int)
+    hinge_sign = np.ones(nb)
+    slide_q = -np.ones((nb, 2), int)
+    for j in range(m.njnt):
+        b = m.jnt_bodyid[j]
+        adr = m.jnt_qposadr[j]
+        ax = m.jnt_axis[j]
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
+            if hinge_q[b] >= 0:
+                raise ValueError(f"{path}: body {m.body(b).name!r} has two hinges")
+            hinge_q[b] = adr
+            hinge_sign[b] = np.sign(ax[1])
+        else:
+            k = 0 if abs(ax[0]) > 0.5 else 1
+            if np.sign(ax[k]) < 0:
+                raise ValueError(f"{path}: slide axes must point along +x / +z")
+            slide_q[b, k] = adr
+    return Body(
+        mj_model=m,
+        parent=np.asarray(m.body_parentid).copy(),
+        pos=np.asarray(m.body_pos[:, [0, 2]]).copy(),
+        hinge_q=hinge_q,
+        hinge_sign=hinge_sign,
+        slide_q=slide_q,
+        ipos=np.asarray(m.body_ipos[:, [0, 2]]).copy(),
+        mass=np.asarray(m.body_mass).copy(),
+        site_body=np.asarray(m.site_bodyid).copy(),
+        site_pos=np.asarray(m.site_pos[:, [0, 2]]).copy(),
+    )
