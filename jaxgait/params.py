@@ -1,0 +1,170 @@
+"""Declared parameter tables: every free parameter once, with start value, range and source.
+
+A :class:`ParamTable` is static data (like a SCONE ``.par`` declaration).  Parameter sets
+are flat float vectors (D,) in table order, which is what the optimisers see;
+``table.unpack(vec)`` gives a name -> scalar mapping inside jitted code (static indices).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import jax.numpy as jnp
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    name: str
+    init: float
+    lower: float
+    upper: float
+    source: str
+    unit: str = ""
+
+
+@dataclass(frozen=True)
+class ParamTable:
+    name: str
+    specs: tuple[ParamSpec, ...]
+
+    def __post_init__(self):
+        names = [s.name for s in self.specs]
+        if len(set(names)) != len(names):
+            raise ValueError(f"duplicate parameter names in table {self.name!r}")
+        for s in self.specs:
+            if not (s.lower <= s.init <= s.upper):
+                raise ValueError(
+                    f"table {self.name!r}: {s.name} init {s.init} outside [{s.lower}, {s.upper}]"
+                )
+
+    # ------------------------------------------------------------------ access
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.specs)
+
+    @property
+    def size(self) -> int:
+        return len(self.specs)
+
+    @property
+    def lower(self) -> np.ndarray:
+        return np.array([s.lower for s in self.specs])
+
+    @property
+    def upper(self) -> np.ndarray:
+        return np.array([s.upper for s in self.specs])
+
+    @property
+    def init(self) -> np.ndarray:
+        return np.array([s.init for s in self.specs])
+
+    def index(self, name: str) -> int:
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise KeyError(
+                f"unknown parameter {name!r} for table {self.name!r}; known: {', '.join(self.names)}"
+            ) from None
+
+    def unpack(self, vec) -> dict:
+        """name -> scalar (static slicing, fine inside jit/vmap)."""
+        if vec.shape[-1] != self.size:
+            raise ValueError(
+                f"parameter vector has {vec.shape[-1]} entries, table {self.name!r} has {self.size}"
+            )
+        return {n: vec[..., i] for i, n in enumerate(self.names)}
+
+    def pack(self, values: dict, base=None) -> np.ndarray:
+        """Vector from a name -> value mapping; missing names take ``base`` (or init)."""
+        out = np.array(self.init if base is None else base, dtype=float).copy()
+        for k, v in values.items():
+            out[self.index(k)] = float(v)
+        return out
+
+    def check(self, vec, where: str = "parameters") -> None:
+        """Raise a ValueError naming every entry outside its range (or not finite)."""
+        vec = np.asarray(vec, dtype=float)
+        if vec.shape != (self.size,):
+            raise ValueError(f"{where}: expected {self.size} values, got shape {vec.shape}")
+        bad = [
+            f"{s.name}={v:g} not in [{s.lower:g}, {s.upper:g}]"
+            for s, v in zip(self.specs, vec, strict=True)
+            if not (np.isfinite(v) and s.lower <= v <= s.upper)
+        ]
+        if bad:
+            raise ValueError(f"{where}: out of range: " + "; ".join(bad))
+
+    def to_table(self, vec) -> str:
+        """Readable table (name, value, range, source)."""
+        vec = np.asarray(vec, dtype=float)
+        w = max(len(n) for n in self.names)
+        lines = [f"# {self.name}: {self.size} parameters", f"{'name':<{w}}  value        range"]
+        for s, v in zip(self.specs, vec, strict=True):
+            lines.append(
+                f"{s.name:<{w}}  {v:<11.6g}  [{s.lower:g}, {s.upper:g}] {s.unit}  # {s.source}"
+            )
+        return "\n".join(lines) + "\n"
+
+    def as_jnp(self, vec, dtype=jnp.float32):
+        return jnp.asarray(vec, dtype)
+
+
+def save_preset(path: Path, model: str, table: ParamTable, vec, **meta) -> None:
+    """Write a preset JSON that ``python -m jaxgait.evaluate`` accepts."""
+    vec = np.asarray(vec, dtype=float)
+    doc = {"model": model, "table": table.name, **meta}
+    doc["params"] = {n: float(v) for n, v in zip(table.names, vec, strict=True)}
+    path = Path(path)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=2) + "\n")
+    tmp.replace(path)
+
+
+_G = "Geyer nms_model_ControlInit.m (geyer_reference 2c, G family)"
+_T25 = "thesis Table 2.5 range"
+_R = "range: Geyer value +- a wide margin (Table 2.5 range illegible)"
+
+#: The 28 FBL parameters of thesis Table 2.5, initial values from Geyer's own Simulink
+#: model (the "G" gain family of geyer_reference.md 2c), expressed in the thesis's
+#: normalised units (force feedback per F/F_max, length feedback per l_opt).
+FBL = ParamTable(
+    "fbl",
+    (
+        # stance-phase trunk stability (eq. 2.35-2.36)
+        ParamSpec("k_bw", 1.2, 0.8, 1.4, "A/GH2010 KBW 1.2; " + _T25),
+        ParamSpec("k_p1", 1.9099, 0.5, 3.0, "k_p = 1/30deg " + _G + "; " + _R, "1/rad"),
+        ParamSpec("k_p2", 1.3369, 0.3, 3.0, "0.7 k_p (GLU = 0.7 HAM) " + _G + "; " + _R, "1/rad"),
+        ParamSpec("k_d", 0.2, 0.0, 0.8, "k_d " + _G + "; " + _R, "s/rad"),
+        ParamSpec("theta_ref", 0.1047, -0.05, 0.3, "6 deg " + _G + "; " + _R, "rad"),
+        # force feedback (per F/F_max)
+        ParamSpec("G_SOL", 1.2, 0.8, 1.6, _G + "; " + _T25),
+        ParamSpec("G_TA_SOL", 0.4, 0.1, 0.8, _G + "; " + _T25),
+        ParamSpec("G_GAS", 1.1, 0.3, 1.6, _G + "; " + _T25),
+        ParamSpec("G_VAS", 1.2, 0.9, 1.8, _G + "; " + _T25),
+        ParamSpec("G_HAM", 0.65, 0.2, 1.0, _G + "; " + _T25),
+        ParamSpec("G_GLU", 0.5, 0.2, 0.9, _G + "; " + _T25),
+        # length feedback (per l_opt)
+        ParamSpec("G_TA", 1.1, 0.5, 3.0, _G + "; " + _R),
+        ParamSpec("G_HFL", 0.5, 0.1, 1.5, _G + "; " + _R),
+        ParamSpec("G_HAM_HFL", 4.0, 0.0, 6.0, _G + "; " + _R),
+        ParamSpec("loff_TA", 0.72, 0.5, 1.0, "1 - 0.5 w " + _G + "; " + _R, "l_opt"),
+        ParamSpec("loff_HFL", 0.65, 0.3, 1.0, _G + "; " + _R, "l_opt"),
+        ParamSpec("loff_HAM", 0.85, 0.5, 1.0, _G + "; " + _R, "l_opt"),
+        # basal activity
+        ParamSpec("S0_SOL", 0.01, 0.01, 0.1, _G + "; " + _T25),
+        ParamSpec("S0_TA", 0.01, 0.01, 0.1, _G + "; " + _T25),
+        ParamSpec("S0_GAS", 0.01, 0.01, 0.1, _G + "; " + _T25),
+        ParamSpec("S0_VAS", 0.08, 0.01, 0.2, _G + "; " + _R),
+        ParamSpec("S0_HAM", 0.05, 0.01, 0.1, "S0_BAL " + _G + "; " + _T25),
+        ParamSpec("S0_GLU", 0.05, 0.01, 0.1, "S0_BAL " + _G + "; " + _T25),
+        ParamSpec("S0_HFL", 0.05, 0.01, 0.1, "S0_BAL " + _G + "; " + _T25),
+        # others
+        ParamSpec("k_lean", 1.1459, 0.0, 2.0, "2 %/deg " + _G + "; " + _T25, "1/rad"),
+        ParamSpec("k_phi", 2.0, 0.0, 3.0, _G + "; " + _T25, "1/rad"),
+        ParamSpec("phi_k_off", 2.9671, 2.8, float(np.pi), "170 deg " + _G + "; " + _T25, "rad"),
+        ParamSpec("delta_S", 0.25, 0.0, 1.05, "K_swing " + _G + "; " + _T25),
+    ),
+)
