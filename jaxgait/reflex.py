@@ -5,7 +5,7 @@ three ring buffers (5 ms hip, 10 ms knee, 20 ms ankle muscles); the stimulation 
 pure function of a delayed sensor vector and the parameter dict, evaluated once per delay
 group, and each muscle takes the result of its own group.
 
-Phases per leg: stance (filtered ground load above a threshold), swing, and stance end
+Phases per leg: stance (filtered ground load above a threshold, with hysteresis), swing, and stance end
 (trailing leg in double support: both legs loaded and the other leg touched down last).
 
 Stance (Table 2.4), with e = theta - theta_ref, u_i = k_pi e + k_d dtheta, Fb_g = k_bw F/(Mg):
@@ -64,7 +64,8 @@ class ReflexConfig:
 
     delays: tuple = (0.005, 0.010, 0.020)  # s, Geyer & Herr 2010
     ground_tau: float = 100.0  # 1/s, eq. 2.34 sensor filter rate
-    stance_threshold: float = 0.02  # filtered load / (M g) above which a leg is in stance
+    stance_on: float = 0.05  # filtered load / (M g) above which a swing leg enters stance
+    stance_off: float = 0.01  # ... below which a stance leg enters swing (hysteresis)
 
 
 @struct.dataclass
@@ -106,7 +107,8 @@ def update_phase(cfg: ReflexConfig, st: ReflexState, grf_n, mg, t, theta, dt):
     Returns (new state without delay lines changed, stance, touchdown (2,) bool, DS (2,)).
     """
     load = st.load + dt * cfg.ground_tau * (grf_n / mg - st.load)
-    stance = load > cfg.stance_threshold
+    thresh = jnp.where(st.stance, cfg.stance_off, cfg.stance_on)
+    stance = load > thresh
     touchdown = stance & ~st.stance
     takeoff = ~stance & st.stance
     td_time = jnp.where(touchdown, t, st.td_time)
