@@ -154,10 +154,17 @@ def _planar_check(m: mujoco.MjModel, path) -> None:
             pass
 
 
-def load_body(name: str = "fbl_planar") -> Body:
-    """Compile the MJCF ``name`` from the models folder into a :class:`Body`."""
+def load_body(name: str = "fbl_planar", timestep: float | None = None) -> Body:
+    """Compile the MJCF ``name`` from the models folder into a :class:`Body`.
+
+    ``timestep`` [s] overrides the MJCF's ``<option timestep>`` (e.g. for convergence checks).
+    """
     path = model_path(name)
     m = mujoco.MjModel.from_xml_path(str(path))
+    if timestep is not None:
+        if not timestep > 0:
+            raise ValueError(f"timestep must be > 0, got {timestep}")
+        m.opt.timestep = float(timestep)
     _planar_check(m, path)
     nb = m.nbody
     hinge_q = -np.ones(nb, int)

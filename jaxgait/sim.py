@@ -177,11 +177,15 @@ class Model:
         return jnp.concatenate([cp, o[feet], o[trunk][None], com[None], push[None]], 0)
 
 
-def make_model(name: str = "fbl") -> Model:
-    """The FBL model on the planar Geyer body with the 7-muscle Geyer table."""
+def make_model(name: str = "fbl", timestep: float | None = None) -> Model:
+    """The FBL model on the planar Geyer body with the 7-muscle Geyer table.
+
+    ``timestep`` [s] overrides the MJCF's physics step (delays must stay whole steps).
+    """
     if name != "fbl":
         raise KeyError(f"unknown model {name!r}; available: fbl")
-    return Model(body=load_body("fbl_planar"), muscles=mus.GEYER7, table=FBL, name="fbl")
+    body = load_body("fbl_planar", timestep)
+    return Model(body=body, muscles=mus.GEYER7, table=FBL, name="fbl")
 
 
 # ------------------------------------------------------------------------- init
