@@ -1,0 +1,214 @@
+"""Parameter presets: named JSON files of controller parameters, loaded and validated.
+
+A preset is a JSON object (written by :func:`jaxgait.params.save_preset`)::
+
+    {"model": "fbl", "table": "fbl", "description": "...", "params": {"k_bw": 1.2, ...}}
+
+* ``model``: the model family the parameters belong to (default ``"fbl"``);
+* ``table``: the :class:`~jaxgait.params.ParamTable` the names refer to (default: the model
+  name);
+* ``params``: name -> value, in the units of the table (see ``ParamTable.to_table``);
+* ``partial`` (optional, default false): names missing from ``params`` take the table's
+  initial values instead of being an error;
+* any other key is free metadata (description, score, provenance...).
+
+Shipped presets live in :func:`jaxgait.resources.presets_dir` (``experiments/presets`` in a
+source checkout) and are referred to by file stem: ``load_preset("geyer_walk")``. Anything
+else is a path to a JSON file, or to a results folder holding ``best.json`` (as written by
+the search scripts).
+
+Presets of the ``taga`` model are not an FBL parameter table: they are passed through
+unvalidated (the raw dict is in the returned document) for :mod:`jaxgait.taga` to check.
+
+Every problem raises :class:`PresetError` (a ``ValueError``) whose message starts with the
+file (or ``where``) and says what is wrong: missing file (with the available preset names),
+invalid JSON (with line and column), no ``params``, unknown or missing parameter names,
+non-numeric values and values outside their range.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from jaxgait import params as params_mod
+from jaxgait.params import ParamTable
+
+#: Model families whose presets are not FBL parameter tables (passed through unvalidated).
+PASS_THROUGH_MODELS = ("taga",)
+#: File looked for inside a results folder.
+RESULTS_FILE = "best.json"
+
+
+class PresetError(ValueError):
+    """A preset cannot be found, parsed or validated; the message names the file."""
+
+
+# --------------------------------------------------------------------------- registry
+
+
+def param_tables() -> dict[str, ParamTable]:
+    """Every :class:`ParamTable` defined in :mod:`jaxgait.params`, by table name."""
+    return {v.name: v for v in vars(params_mod).values() if isinstance(v, ParamTable)}
+
+
+def available_models() -> tuple[str, ...]:
+    """Model names a preset may declare: the parameter tables plus :data:`PASS_THROUGH_MODELS`."""
+    return tuple(sorted(param_tables())) + PASS_THROUGH_MODELS
+
+
+def _presets_dir() -> Path | None:
+    from jaxgait.resources import presets_dir
+
+    try:
+        return presets_dir()
+    except FileNotFoundError:
+        return None
+
+
+def list_presets() -> list[str]:
+    """Names (file stems) of the shipped presets, sorted; empty if none are shipped."""
+    d = _presets_dir()
+    if d is None:
+        return []
+    return sorted(p.stem for p in d.glob("*.json") if p.is_file())
+
+
+def _available_text() -> str:
+    names = list_presets()
+    return "available presets: " + (", ".join(names) if names else "(none shipped)")
+
+
+def _is_bare_name(s: str) -> bool:
+    return "/" not in s and "\\" not in s and not s.endswith(".json") and s not in (".", "..")
+
+
+def resolve_preset(name_or_path: str | Path) -> Path:
+    """Path of the JSON file a preset name, file path or results folder refers to.
+
+    A bare name (no directory part, no ``.json``) is looked up as
+    ``presets_dir()/NAME.json`` first; otherwise (or if there is no such preset) the
+    argument is a path: a JSON file, or a folder holding ``best.json``.
+
+    Raises:
+      PresetError: nothing found; the message lists the shipped preset names.
+    """
+    s = str(name_or_path)
+    if not s.strip():
+        raise PresetError(f"empty preset name; {_available_text()}")
+    d = _presets_dir()
+    if isinstance(name_or_path, str) and _is_bare_name(s) and d is not None:
+        cand = d / f"{s}.json"
+        if cand.is_file():
+            return cand
+    p = Path(s).expanduser()
+    if p.is_dir():
+        best = p / RESULTS_FILE
+        if best.is_file():
+            return best
+        raise PresetError(f"{p}: folder has no {RESULTS_FILE} (not a results folder)")
+    if p.is_file():
+        return p
+    if _is_bare_name(s):
+        where = f"{d}/{s}.json" if d is not None else "the presets folder (not found)"
+        raise PresetError(f"{s}: no preset of that name (looked for {where}); {_available_text()}")
+    raise PresetError(f"{p}: file not found; {_available_text()}")
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def _number(where: str, name: str, v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise PresetError(f"{where}: parameter {name!r} has value {v!r}, not a number")
+    return float(v)
+
+
+def preset_from_dict(doc, where: str = "preset") -> tuple[str, np.ndarray, dict]:
+    """Validate a parsed preset document; see :func:`load_preset` for the result.
+
+    Args:
+      doc: the JSON object (a dict).
+      where: label used at the start of error messages (the file name).
+    """
+    if not isinstance(doc, dict):
+        raise PresetError(f"{where}: a preset must be a JSON object, got {type(doc).__name__}")
+    model = doc.get("model", "fbl")
+    if not isinstance(model, str):
+        raise PresetError(f"{where}: 'model' must be a string, got {model!r}")
+    if "params" not in doc:
+        raise PresetError(f"{where}: no 'params' entry (expected {{name: value, ...}})")
+    raw = doc["params"]
+    if model in PASS_THROUGH_MODELS:
+        return model, np.zeros(0), doc
+    if not isinstance(raw, dict):
+        raise PresetError(f"{where}: 'params' must be an object {{name: value}}, got {raw!r:.60}")
+    tables = param_tables()
+    table_name = doc.get("table", model)
+    if model not in tables and table_name not in tables:
+        raise PresetError(
+            f"{where}: model {model!r} is not available in this version of jaxgait "
+            f"(available: {', '.join(available_models())})"
+        )
+    if table_name not in tables:
+        raise PresetError(
+            f"{where}: unknown parameter table {table_name!r} (available: {', '.join(tables)})"
+        )
+    table = tables[table_name]
+
+    unknown = [k for k in raw if k not in table.names]
+    if unknown:
+        hints = []
+        for k in unknown:
+            close = difflib.get_close_matches(k, table.names, n=1)
+            hints.append(f"{k} (did you mean {close[0]}?)" if close else k)
+        raise PresetError(
+            f"{where}: unknown parameter(s) for table {table.name!r}: {', '.join(hints)}"
+        )
+    values = {k: _number(where, k, v) for k, v in raw.items()}
+    missing = [n for n in table.names if n not in values]
+    partial = doc.get("partial", False)
+    if missing and partial is not True:
+        raise PresetError(
+            f"{where}: missing parameter(s) for table {table.name!r}: {', '.join(missing)} "
+            '(add them, or set "partial": true to take the table\'s initial values)'
+        )
+    vec = table.pack(values)
+    try:
+        table.check(vec, where=where)
+    except ValueError as e:
+        raise PresetError(str(e)) from None
+    return model, vec, doc
+
+
+def load_preset(name_or_path: str | Path) -> tuple[str, np.ndarray, dict]:
+    """Load and validate a preset.
+
+    Args:
+      name_or_path: a shipped preset name (``presets_dir()/NAME.json``), a path to a preset
+        JSON file, or a results folder containing ``best.json``.
+
+    Returns:
+      ``(model_name, vec, doc)``: the model family (e.g. ``"fbl"``), the (D,) float64
+      parameter vector in the order of the preset's table (units of the table; an empty
+      array for pass-through models such as ``"taga"``, whose parameters stay in
+      ``doc["params"]``) and the parsed JSON document.
+
+    Raises:
+      PresetError: with the file name and what is wrong.
+    """
+    path = resolve_preset(name_or_path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise PresetError(f"{path}: cannot read preset file: {e}") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise PresetError(
+            f"{path}: invalid JSON at line {e.lineno}, column {e.colno}: {e.msg}"
+        ) from None
+    return preset_from_dict(doc, where=str(path))

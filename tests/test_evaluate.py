@@ -1,0 +1,346 @@
+"""Presets, trajectory CSV, plots and the evaluate command (one short simulation)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+
+import numpy as np
+import pytest
+
+from jaxgait import evaluate as ev
+from jaxgait import plots, presets, trajectory_io
+from jaxgait.muscle import MUSCLES
+from jaxgait.params import FBL, save_preset
+from jaxgait.trace import Events, Summary, Trace
+
+MASS = 80.0
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def write_json(path, doc):
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def fbl_doc(**params):
+    d = {n: float(v) for n, v in zip(FBL.names, FBL.init, strict=True)}
+    d.update(params)
+    return {"model": "fbl", "table": "fbl", "params": d}
+
+
+def hand_trace(T=120, dt=0.01, alive_rows=None, right_td=(0.1, 0.6, 1.1), left_td=(0.35, 0.85)):
+    """A small synthetic rollout: sinusoidal joints, walking CoM, touchdowns as given."""
+    t = dt * np.arange(1, T + 1)
+    ph = 2 * np.pi * t / 0.5
+    qpos = np.zeros((T, 9), np.float32)
+    qpos[:, 0] = 1.2 * t
+    qpos[:, 1] = 0.02 * np.sin(2 * ph)
+    qpos[:, 2] = 0.05
+    for leg, sh in ((0, 0.0), (1, np.pi)):
+        qpos[:, 3 + 3 * leg] = np.deg2rad(15 + 20 * np.sin(ph + sh))
+        qpos[:, 4 + 3 * leg] = np.deg2rad(30 + 30 * np.sin(ph + sh + 1))
+        qpos[:, 5 + 3 * leg] = np.deg2rad(5 * np.sin(ph + sh + 2))
+    grf = np.zeros((T, 2, 2), np.float32)
+    grf[:, 0, 1] = MASS * 9.81 * np.clip(np.sin(ph), 0, None)
+    grf[:, 1, 1] = MASS * 9.81 * np.clip(-np.sin(ph), 0, None)
+    grf[:, :, 0] = 0.1 * grf[:, :, 1]
+    act = np.stack([np.full((T, 7), 0.1), np.full((T, 7), 0.2)], 1).astype(np.float32)
+    act[:, 0, :] += 0.05 * (1 + np.sin(ph))[:, None]
+    alive = np.ones(T, bool)
+    if alive_rows is not None:
+        alive[alive_rows:] = False
+    trace = Trace(
+        t=t.astype(np.float32),
+        qpos=qpos,
+        com=np.stack([qpos[:, 0], qpos[:, 1] + 0.9], 1),
+        com_vel=np.stack([np.full(T, 1.2), np.zeros(T)], 1).astype(np.float32),
+        grf=grf,
+        stance=np.stack([np.sin(ph) > -0.2, np.sin(ph) < 0.2], 1),
+        act=act,
+        stim=act,
+        energy=(100.0 * t).astype(np.float32),
+        alive=alive,
+    )
+    tds = sorted([(x, 0) for x in right_td] + [(x, 1) for x in left_td])
+    E = 8
+    ev_t = np.zeros(E, np.float32)
+    ev_leg = np.zeros(E, np.int32)
+    for i, (x, leg) in enumerate(tds):
+        ev_t[i], ev_leg[i] = x, leg
+    events = Events(
+        t=ev_t,
+        leg=ev_leg,
+        x_td=1.2 * ev_t + 0.3,
+        x_other=1.2 * ev_t - 0.3,
+        n=np.int32(len(tds)),
+    )
+    t_end = float(t[alive][-1]) if alive.any() else 0.0
+    summary = Summary(
+        duration=np.float32(t_end),
+        distance=np.float32(1.2 * t_end),
+        fell=np.bool_(alive_rows is not None),
+        energy=np.float32(100 * t_end),
+        trunk_lean_sum=np.float32(0.05 * t_end),
+        mass=np.float32(MASS),
+    )
+    return trace, events, summary
+
+
+# ----------------------------------------------------------------------------- presets
+
+
+def test_load_preset_round_trip(tmp_path):
+    p = tmp_path / "ok.json"
+    vec = FBL.init.copy()
+    vec[0] = 1.3
+    save_preset(p, "fbl", FBL, vec, description="test")
+    model, got, doc = presets.load_preset(p)
+    assert model == "fbl" and doc["description"] == "test"
+    np.testing.assert_allclose(got, vec)
+    # a results folder holding best.json
+    (tmp_path / "res").mkdir()
+    save_preset(tmp_path / "res" / "best.json", "fbl", FBL, vec)
+    np.testing.assert_allclose(presets.load_preset(tmp_path / "res")[1], vec)
+    assert isinstance(presets.list_presets(), list)
+
+
+def test_preset_missing_file(tmp_path):
+    with pytest.raises(presets.PresetError, match="not found.*available presets"):
+        presets.load_preset(tmp_path / "nope.json")
+    with pytest.raises(presets.PresetError, match="no_such_preset.*available presets"):
+        presets.load_preset("no_such_preset")
+    with pytest.raises(presets.PresetError, match="no best.json"):
+        presets.load_preset(tmp_path)
+
+
+def test_preset_bad_json(tmp_path):
+    p = tmp_path / "bad.json"
+    p.write_text('{"model": "fbl",\n "params": {"k_bw": 1.2,,}}\n')
+    with pytest.raises(presets.PresetError) as e:
+        presets.load_preset(p)
+    assert "bad.json" in str(e.value) and "line 2" in str(e.value)
+
+
+def test_preset_no_params(tmp_path):
+    p = write_json(tmp_path / "np.json", {"model": "fbl"})
+    with pytest.raises(presets.PresetError, match=r"np\.json.*no 'params'"):
+        presets.load_preset(p)
+
+
+def test_preset_unknown_parameter(tmp_path):
+    p = write_json(tmp_path / "unk.json", fbl_doc(G_SOLL=1.0))
+    with pytest.raises(presets.PresetError) as e:
+        presets.load_preset(p)
+    msg = str(e.value)
+    assert "unk.json" in msg and "G_SOLL" in msg and "did you mean G_SOL" in msg
+
+
+def test_preset_missing_parameter_and_partial(tmp_path):
+    doc = fbl_doc()
+    del doc["params"]["G_VAS"], doc["params"]["k_d"]
+    p = write_json(tmp_path / "miss.json", doc)
+    with pytest.raises(presets.PresetError) as e:
+        presets.load_preset(p)
+    assert "miss.json" in str(e.value) and "G_VAS" in str(e.value) and "k_d" in str(e.value)
+    doc["partial"] = True
+    p = write_json(tmp_path / "partial.json", doc)
+    _, vec, _ = presets.load_preset(p)
+    assert vec[FBL.index("G_VAS")] == FBL.init[FBL.index("G_VAS")]
+
+
+def test_preset_out_of_range_and_not_number(tmp_path):
+    p = write_json(tmp_path / "range.json", fbl_doc(G_SOL=5.0))
+    with pytest.raises(presets.PresetError) as e:
+        presets.load_preset(p)
+    assert "range.json" in str(e.value) and "G_SOL=5" in str(e.value)
+    p = write_json(tmp_path / "str.json", fbl_doc(k_bw="big"))
+    with pytest.raises(presets.PresetError, match=r"str\.json.*'k_bw'"):
+        presets.load_preset(p)
+
+
+def test_preset_taga_pass_through_and_unknown_model(tmp_path):
+    p = write_json(tmp_path / "t.json", {"model": "taga", "params": {"anything": [1, 2]}})
+    model, vec, doc = presets.load_preset(p)
+    assert model == "taga" and vec.size == 0 and doc["params"]["anything"] == [1, 2]
+    p = write_json(tmp_path / "x.json", {"model": "fblplus", "params": {}})
+    with pytest.raises(presets.PresetError, match="fblplus.*not available"):
+        presets.load_preset(p)
+
+
+# ----------------------------------------------------------------------------- CSV
+
+
+def test_trajectory_csv_round_trip(tmp_path, fbl_model):
+    trace, events, summary = hand_trace(T=40, alive_rows=25)
+    path = trajectory_io.write_trajectory_csv(tmp_path / "traj.csv", trace, summary, fbl_model)
+    text = path.read_text()
+    assert text.startswith("# jaxgait trajectory")
+    cols = [c[0] for c in trajectory_io.trajectory_columns(MUSCLES)]
+    for c in cols:  # every column is documented in the header block and the module doc
+        assert f"#   {c} [" in text
+        assert (c if not c.startswith("act_") else "act_<M>") in trajectory_io.__doc__
+    d = trajectory_io.read_trajectory_csv(path)
+    assert list(d) == cols
+    assert all(v.shape == (25,) for v in d.values())
+    np.testing.assert_allclose(d["time_s"], trace.t[:25], rtol=1e-6)
+    np.testing.assert_allclose(d["knee_l_deg"], np.rad2deg(trace.qpos[:25, 7]), atol=1e-4)
+    np.testing.assert_allclose(d["trunk_lean_deg"], np.rad2deg(0.05), atol=1e-4)
+    np.testing.assert_allclose(d["grf_z_r_bw"], trace.grf[:25, 0, 1] / (MASS * 9.81), atol=1e-6)
+    np.testing.assert_allclose(d["act_TA_l"], trace.act[:25, 1, 6], atol=1e-7)
+    np.testing.assert_array_equal(d["stance_l"], trace.stance[:25, 1])
+    assert d["stance_r"].dtype == bool
+    np.testing.assert_allclose(d["energy_J"], trace.energy[:25], rtol=1e-6)
+    assert not list(tmp_path.glob(".*tmp"))  # atomic write left no temporary file
+
+
+# ----------------------------------------------------------------------------- plots
+
+
+@pytest.mark.parametrize("case", ["cycles", "fell_early"])
+def test_plots_hand_made(tmp_path, fbl_model, case):
+    if case == "cycles":
+        trace, events, summary = hand_trace()
+    else:  # fell after 0.3 s with one right touchdown: no full cycle
+        trace, events, summary = hand_trace(alive_rows=30, right_td=(0.1,), left_td=(0.25,))
+    paths = plots.plot_all(tmp_path / case, trace, events, summary, fbl_model, n_cycles=3)
+    assert set(paths) == {"joint_angles", "grf", "activations", "stick_figure"}
+    for p in paths.values():
+        assert p.is_file() and p.stat().st_size > 5000
+
+
+def test_plots_no_alive_rows(tmp_path, fbl_model):
+    trace, events, summary = hand_trace(T=20, alive_rows=0, right_td=(), left_td=())
+    p = plots.plot_stick_figure(tmp_path / "s.png", trace, events, fbl_model)
+    assert p.is_file()
+
+
+# ----------------------------------------------------------------------------- CLI errors
+
+
+def test_main_bad_inputs(tmp_path, capsys):
+    good = tmp_path / "good.json"
+    save_preset(good, "fbl", FBL, FBL.init)
+    cases = [
+        (["no_such_preset_xyz", "--json"], "no_such_preset_xyz"),
+        ([str(good), "--env", "moon"], "moon"),
+        ([str(good), "--duration", "-1"], "duration"),
+        ([str(good), "--model", "fblplus"], "fblplus"),
+        ([str(good), "--model", "taga"], "is for model 'fbl'"),
+        ([str(good), "--save-trajectory", str(tmp_path / "nodir" / "t.csv")], "nodir"),
+    ]
+    for argv, needle in cases:
+        assert ev.main(argv) == 2, argv
+        out, errtxt = capsys.readouterr()
+        assert out == "" and needle in errtxt and "Traceback" not in errtxt, (argv, errtxt)
+
+
+def test_main_taga_dispatch(tmp_path, capsys, monkeypatch):
+    import jaxgait.taga as taga
+
+    capsys.readouterr()  # drop anything printed while importing
+    seen = {}
+
+    def fake(preset, duration, env, slope):
+        seen.update(preset=preset, duration=duration, env=env, slope=slope)
+        return {"distance_m": np.float32(2.5), "fell": np.bool_(False), "speed": float("nan")}
+
+    monkeypatch.setattr(taga, "evaluate_preset", fake, raising=False)
+    p = write_json(tmp_path / "taga.json", {"model": "taga", "params": {"u0": 5.0}})
+    assert ev.main([str(p), "--json", "--duration", "2"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["distance_m"] == 2.5 and rep["fell"] is False and rep["speed"] is None
+    assert rep["model"] == "taga" and seen["duration"] == 2.0 and seen["env"] == "flat"
+    assert ev.main([str(p), "--json", "--env", "slope_down"]) == 0
+    assert seen["env"] == "slope" and seen["slope"] == -0.05
+    assert ev.main([str(p), "--env", "wavy"]) == 2
+    assert seen["preset"]["params"] == {"u0": 5.0}
+    monkeypatch.delattr(taga, "evaluate_preset")
+    assert ev.main([str(p)]) == 2
+    assert "evaluate_preset is not available" in capsys.readouterr().err
+
+
+def test_json_safe():
+    assert ev.json_safe({"a": np.float32(np.nan), "b": np.bool_(True), "c": np.int32(3)}) == {
+        "a": None,
+        "b": True,
+        "c": 3,
+    }
+
+
+# ----------------------------------------------------------------------------- end to end
+
+
+@pytest.fixture(scope="module")
+def e2e(tmp_path_factory):
+    """One short simulation through the command line, reused by the checks below."""
+    d = tmp_path_factory.mktemp("e2e")
+    preset = d / "init.json"
+    save_preset(preset, "fbl", FBL, FBL.init, description="table init values")
+    out = io.StringIO()
+    argv = [
+        str(preset),
+        "--json",
+        "--duration",
+        "0.3",
+        "--save-trajectory",
+        str(d / "traj.csv"),
+        "--plots",
+        str(d / "plots"),
+    ]
+    with contextlib.redirect_stdout(out):
+        code = ev.main(argv)
+    return code, out.getvalue(), d
+
+
+def test_end_to_end_json(e2e):
+    code, text, _ = e2e
+    assert code == 0
+    rep = json.loads(text)  # exactly one JSON object
+    keys = [
+        "distance_m",
+        "duration_s",
+        "fell",
+        "mean_speed_mps",
+        "energy_J_per_m",
+        "cost_of_transport",
+        "c_angles",
+        "corr_hip",
+        "corr_knee",
+        "corr_ankle",
+        "step_length_snr",
+        "step_length_mean_m",
+        "n_steps",
+        "double_stance_fraction",
+        "mean_trunk_lean_deg",
+        "preset",
+        "model",
+        "env",
+        "units",
+    ]
+    for k in keys:
+        assert k in rep, k
+    assert rep["model"] == "fbl" and rep["env"] == "flat"
+    assert isinstance(rep["fell"], bool)
+    for k, v in rep.items():
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            assert math.isfinite(v), k
+        assert not isinstance(v, (list,)), k
+    assert 0 < rep["duration_s"] <= 0.3 + 1e-6
+    assert rep["units"]["distance_m"] == "m" and rep["units"]["mean_trunk_lean_deg"] == "deg"
+
+
+def test_end_to_end_outputs(e2e):
+    code, text, d = e2e
+    assert code == 0
+    rep = json.loads(text)
+    traj = trajectory_io.read_trajectory_csv(d / "traj.csv")
+    assert 1 <= traj["time_s"].size <= 30
+    assert np.all(np.isfinite(traj["com_x_m"]))
+    for name in ("joint_angles", "grf", "activations", "stick_figure"):
+        assert (d / "plots" / f"{name}.png").is_file()
+        assert rep["plot_files"][name].endswith(f"{name}.png")
