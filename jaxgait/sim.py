@@ -156,7 +156,8 @@ class Model:
     def _template(self):
         from mujoco import mjx
 
-        return mjx.make_data(self.mjx_model)
+        with jax.ensure_compile_time_eval():  # concrete even if first used while tracing
+            return mjx.make_data(self.mjx_model)
 
     @property
     def mass(self) -> float:
@@ -220,7 +221,7 @@ def initial_state(model: Model, params, env: Env, cfg: SimConfig) -> SimState:
     load0 = jnp.asarray([1.0, 0.0], dtype)
     stance0 = jnp.asarray([True, False])
     sensors0 = sensor_array(
-        f_mtu / jnp.asarray(table.f_max, dtype),
+        f_mtu / jnp.maximum(jnp.asarray(table.f_max, dtype), 1e-9),
         l_ce / jnp.asarray(table.l_opt, dtype),
         load0,
         stance0,
@@ -352,7 +353,7 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
         model.reflex, s.reflex, grf[:, 1], mg, s.t, s.qpos[2], dt
     )
     sensors = sensor_array(
-        f_mtu / jnp.asarray(table.f_max, dtype),
+        f_mtu / jnp.maximum(jnp.asarray(table.f_max, dtype), 1e-9),
         s.muscle.l_ce / jnp.asarray(table.l_opt, dtype),
         rstate.load,
         stance,
