@@ -52,7 +52,11 @@ S_DTRUNK = 19  # d theta / dt [rad/s]
 S_KNEE = 20  # knee angle phi_k (GH convention) [rad]
 S_DKNEE = 21  # d phi_k / dt [rad/s]
 S_THETA_TO = 22  # trunk pitch at this leg's last take-off [rad]
-N_SENSORS = 23
+S_HIP = 23  # hip angle phi_h (GH convention: 180 deg straight, smaller = flexion) [rad]
+S_DHIP = 24  # d phi_h / dt [rad/s]
+S_KNEE_W = 25  # (unused by FBL) knee angle again, kept for symmetric PD laws [rad]
+S_DCOM = 26  # (x_CoM - x_ball) / foot length: CoM ahead of this leg's ball, + [-]
+N_SENSORS = 27
 
 #: delay group of each muscle: 0 = 5 ms (hip), 1 = 10 ms (knee), 2 = 20 ms (ankle)
 MUSCLE_DELAY_GROUP = np.array([0, 0, 0, 1, 2, 2, 2])
@@ -119,8 +123,15 @@ def update_phase(cfg: ReflexConfig, st: ReflexState, grf_n, mg, t, theta, dt):
     return new, stance, touchdown, ds
 
 
-def sensor_array(f_norm, l_norm, load, stance, ds, theta, dtheta, phi_knee, dphi_knee, theta_to):
-    """Pack the per-leg sensors into (2, N_SENSORS) (see the S_* layout)."""
+def sensor_array(
+    f_norm, l_norm, load, stance, ds, theta, dtheta, phi, dphi, theta_to, dcom
+):
+    """Pack the per-leg sensors into (2, N_SENSORS) (see the S_* layout).
+
+    phi, dphi: (2, 3) GH joint angles (hip, knee, ankle) and rates; dcom: (2,) normalised
+    horizontal CoM-to-ball distance.
+    """
+    phi_knee, dphi_knee = phi[:, 1], dphi[:, 1]
     one = jnp.ones((2,), f_norm.dtype)
     cols = [
         f_norm,
@@ -134,6 +145,10 @@ def sensor_array(f_norm, l_norm, load, stance, ds, theta, dtheta, phi_knee, dphi
         phi_knee[:, None],
         dphi_knee[:, None],
         theta_to[:, None],
+        phi[:, 0:1],
+        dphi[:, 0:1],
+        phi[:, 1:2],
+        dcom[:, None],
     ]
     return jnp.concatenate(cols, axis=1)
 

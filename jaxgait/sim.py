@@ -163,6 +163,12 @@ class Model:
     def mass(self) -> float:
         return self.body.total_mass
 
+    @cached_property
+    def foot_length(self) -> float:
+        """Heel-to-ball distance of the right foot [m]."""
+        b = self.body
+        return float(np.linalg.norm(b.site_pos[b.site_id("ball_r")] - b.site_pos[b.site_id("heel_r")]))
+
     # ------------------------------------------------------------- kinematics
     def points(self, qpos, push_h):
         """(9, 2): heel_r, ball_r, heel_l, ball_l, ankle_r, ankle_l, hip, CoM, push point."""
@@ -228,9 +234,10 @@ def initial_state(model: Model, params, env: Env, cfg: SimConfig) -> SimState:
         jnp.zeros(2, bool),
         qpos[2],
         qvel[2],
-        phi[:, 1],
-        jnp.zeros(2, dtype),
+        phi,
+        jnp.zeros_like(phi),
         jnp.full((2,), qpos[2]),
+        (pts[7, 0] - pts[[1, 3], 0]) / model.foot_length,
     )
     rstate = init_reflex(model.reflex, model.dt, sensors0, load0, stance0, qpos[2])
     E = cfg.max_events
@@ -360,9 +367,10 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
         ds,
         s.qpos[2],
         s.qvel[2],
-        phi[:, 1],
-        dphi[:, 1],
+        phi,
+        dphi,
         rstate.theta_to,
+        (pts[7, 0] - pts[[1, 3], 0]) / model.foot_length,
     )
     stim, lines = delayed_stimulation(p, rstate, sensors, model.law)
     rstate = rstate.replace(lines=lines)

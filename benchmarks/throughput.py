@@ -1,0 +1,168 @@
+"""Throughput and memory of the FBL model step (a benchmark, not a test).
+
+For each batch size it measures, each case in its own subprocess (so peak memory is its own):
+
+* ``full``: the whole jaxgait step (MJX multibody, Geyer contact and soft limits resolved
+  linearly-implicitly, 14 muscle-tendon units, reflex controller with delay lines, metabolic
+  energy), ``vmap`` over the batch, ``lax.scan`` over time, one ``jit``;
+* ``mjx``: MJX physics alone on the same MJCF (``mjx.step``, constraint solver off);
+* ``c``: MuJoCo's native C rollout (``mujoco.rollout``, one thread per core) of the same MJCF.
+
+It prints env-steps/s, the real-time factor (simulated seconds per wall second, summed over
+the batch) and the peak resident memory, then the ratios full/mjx and full/C measured in the
+same run.  Usage::
+
+    python benchmarks/throughput.py                   # batches 1 64 512 4096
+    python benchmarks/throughput.py --batches 64 512 --steps 400
+    python benchmarks/throughput.py --profile 512     # where the time goes (XLA profile)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+
+
+def _peak_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def run_case(kind: str, batch: int, steps: int, repeats: int) -> dict:
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from jaxgait import envs, sim
+
+    model = sim.make_model()
+    dt = model.dt
+    if kind == "c":
+        import mujoco
+        from mujoco import rollout
+
+        m = model.body.mj_model
+        d = mujoco.MjData(m)
+        nthread = os.cpu_count() or 1
+        datas = [mujoco.MjData(m) for _ in range(nthread)]
+        state = np.zeros((batch, mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)))
+        d.qpos[1] = 0.1
+        d.qvel[0] = 1.3
+        mujoco.mj_getState(m, d, state[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        state[:] = state[0]
+        rollout.rollout(m, datas, state, nstep=steps)  # warm-up (thread pool)
+        best = np.inf
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            rollout.rollout(m, datas, state, nstep=steps)
+            best = min(best, time.perf_counter() - t0)
+        return {"kind": kind, "batch": batch, "seconds": best, "steps": steps,
+                "env_steps_per_s": batch * steps / best, "rtf": batch * steps * dt / best,
+                "peak_mib": _peak_mib(), "threads": nthread}
+
+    cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
+    keys = jax.random.split(jax.random.PRNGKey(0), batch)
+    env = envs.make_env_batch("flat", keys)
+    params = jnp.broadcast_to(jnp.asarray(model.table.init, jnp.float32), (batch, model.table.size))
+    s0 = jax.vmap(lambda p, e: sim.initial_state(model, p, e, cfg))(params, env)
+    if kind == "full":
+
+        def run(s):
+            f = jax.vmap(lambda p, e, s: sim.step(model, cfg, p, e, s))
+            return jax.lax.scan(lambda s, _: (f(params, env, s), None), s, None, length=steps)[0]
+
+        arg = s0
+    elif kind == "mjx":
+        from mujoco import mjx
+
+        mx = model.mjx_model
+        arg = jax.vmap(lambda q, v: model._template.replace(qpos=q, qvel=v))(s0.qpos, s0.qvel)
+
+        def run(d):
+            f = jax.vmap(lambda d: mjx.step(mx, d))
+            return jax.lax.scan(lambda d, _: (f(d), None), d, None, length=steps)[0]
+    else:
+        raise ValueError(kind)
+    run = jax.jit(run)
+    t0 = time.perf_counter()
+    jax.block_until_ready(run(arg))
+    compile_s = time.perf_counter() - t0
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(run(arg))
+        best = min(best, time.perf_counter() - t0)
+    return {"kind": kind, "batch": batch, "seconds": best, "steps": steps,
+            "env_steps_per_s": batch * steps / best, "rtf": batch * steps * dt / best,
+            "peak_mib": _peak_mib(), "compile_s": compile_s}
+
+
+def profile(batch: int, steps: int, out: str) -> None:
+    """Write an XLA/TensorBoard trace of the full step (open with tensorboard or perfetto)."""
+    import jax
+
+    run_case("full", batch, steps, 1)
+    jax.profiler.start_trace(out)
+    run_case("full", batch, steps, 1)
+    jax.profiler.stop_trace()
+    print(f"trace written to {out}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--batches", type=int, nargs="+", default=[1, 64, 512, 4096])
+    ap.add_argument("--steps", type=int, default=200, help="physics steps per timed run")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--kinds", nargs="+", default=["full", "mjx", "c"])
+    ap.add_argument("--one", nargs=2, metavar=("KIND", "BATCH"), help=argparse.SUPPRESS)
+    ap.add_argument("--profile", type=int, metavar="BATCH")
+    ap.add_argument("--json", action="store_true")
+    a = ap.parse_args(argv)
+    if a.one:
+        print(json.dumps(run_case(a.one[0], int(a.one[1]), a.steps, a.repeats)))
+        return
+    if a.profile:
+        profile(a.profile, a.steps, "benchmarks/profile")
+        return
+    rows = []
+    for b in a.batches:
+        for k in a.kinds:
+            out = subprocess.run(
+                [sys.executable, __file__, "--one", k, str(b), "--steps", str(a.steps),
+                 "--repeats", str(a.repeats)],
+                capture_output=True, text=True,
+            )
+            line = [x for x in out.stdout.splitlines() if x.startswith("{")]
+            if out.returncode != 0 or not line:
+                rows.append({"kind": k, "batch": b, "error": out.stderr.strip().splitlines()[-1:]})
+            else:
+                rows.append(json.loads(line[-1]))
+            print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+    if a.json:
+        print(json.dumps(rows, indent=1))
+        return
+    print(f"{'batch':>6} {'case':>5} {'env-steps/s':>12} {'RTF':>10} {'peak MiB':>9}")
+    by = {(r["kind"], r["batch"]): r for r in rows if "error" not in r}
+    for r in rows:
+        if "error" in r:
+            print(f"{r['batch']:>6} {r['kind']:>5}  failed: {r['error']}")
+            continue
+        print(f"{r['batch']:>6} {r['kind']:>5} {r['env_steps_per_s']:>12,.0f} {r['rtf']:>10.1f} "
+              f"{r['peak_mib']:>9.0f}")
+    print("\nratios (same run):")
+    for b in a.batches:
+        f, m, c = by.get(("full", b)), by.get(("mjx", b)), by.get(("c", b))
+        parts = [f"batch {b:>5}:"]
+        if f and m:
+            parts.append(f"full/mjx = {f['env_steps_per_s'] / m['env_steps_per_s']:.2f}")
+        if f and c:
+            parts.append(f"full/C = {f['env_steps_per_s'] / c['env_steps_per_s']:.3f}")
+        print("  ".join(parts))
+
+
+if __name__ == "__main__":
+    main()
