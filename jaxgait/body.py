@@ -56,7 +56,8 @@ class Body:
     def mjx_model(self):
         from mujoco import mjx
 
-        return mjx.put_model(self.mj_model)
+        with jax.ensure_compile_time_eval():  # concrete even if first used while tracing
+            return mjx.put_model(self.mj_model)
 
     @property
     def total_mass(self) -> float:
