@@ -420,6 +420,9 @@ def main(argv=None) -> int:
         return int(e.code) if isinstance(e.code, int) else 2
     out = sys.stdout
     with contextlib.redirect_stdout(sys.stderr):
+        from jaxgait import compile_cache
+
+        compile_cache.enable()
         code, text = _main(a)
     if text is not None:
         print(text, file=out)

@@ -388,7 +388,7 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
     t = s.t + dt
     energy = s.energy + rate * dt
     lean_sum = s.lean_sum + s.qpos[2] * dt
-    events = _record_touchdowns(s.events, td, s.t, pts[4:6, 0])
+    events = _record_touchdowns(s.events, td & ~s.done, s.t, pts[4:6, 0])
 
     # 7. fall and stopping criteria; the summary freezes at the first "done"
     hip = pts[6]

@@ -1,8 +1,15 @@
 import os
+from pathlib import Path
 
-os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false")
+import pytest
 
-import pytest  # noqa: E402
+# One XLA compilation cache for the whole test session: test files that build the same
+# rollout share the compiled program instead of compiling it again.
+os.environ.setdefault("JAXGAIT_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".jax_cache"))
+
+from jaxgait import compile_cache  # noqa: E402
+
+compile_cache.enable()
 
 
 @pytest.fixture(scope="session")

@@ -46,6 +46,11 @@ def main(argv=None):
     ap.add_argument("--v-target", type=float, default=1.3)
     ap.add_argument("--init", type=str, default=None, help="preset JSON to start from")
     ap.add_argument("--objective", choices=("walk", "refine"), default="walk")
+    ap.add_argument(
+        "--push", type=float, default=0.0,
+        help="if > 0, each candidate is also scored with one push of this amplitude [N] at a "
+        "random time (fresh every generation) and keeps its worse score",
+    )
     ap.add_argument("--out", type=Path, default=Path(__file__).parent / "run")
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
@@ -61,7 +66,8 @@ def main(argv=None):
     lower = jnp.asarray(table.lower, jnp.float32)
     upper = jnp.asarray(table.upper, jnp.float32)
     state = strat.init(key, (lower, upper), jnp.asarray(init, jnp.float32))
-    env = envs.make_env_batch("flat", jax.random.split(key, a.popsize))
+    k_env = 2 if a.push > 0 else 1
+    push_cfg = envs.get_env_config("push", magnitude=max(a.push, 1.0), t_min=2.0, t_max=a.duration - 3.0)
     roll = sim.make_rollout(model, cfg)
 
     measure = jax.vmap(functools.partial(compute_measures, skip=2))
@@ -85,8 +91,16 @@ def main(argv=None):
         t0 = time.time()
         key, k = jax.random.split(key)
         pop, state = strat.ask(k, state)
-        tr, ev, summ, _ = roll(pop, env)
-        s = np.asarray(score(tr, ev, summ))
+        env = envs.make_env_batch("flat", jax.random.split(k, a.popsize))
+        if k_env == 2:  # worst of (flat, flat + one push at a random time)
+            pushed = envs.make_env_batch(push_cfg, jax.random.split(jax.random.fold_in(k, 1), a.popsize))
+            env = jax.tree.map(lambda x, y: jnp.concatenate([x, y]), env, pushed)
+        pop_k = jnp.concatenate([pop] * k_env)
+        tr, ev, summ_k, _ = roll(pop_k, env)
+        s_k = np.asarray(score(tr, ev, summ_k)).reshape(k_env, a.popsize)
+        worst = np.argmin(s_k, axis=0)
+        s = s_k[worst, np.arange(a.popsize)]
+        summ = jax.tree.map(lambda x: np.asarray(x).reshape(k_env, a.popsize)[worst, np.arange(a.popsize)], summ_k)
         state = strat.tell(state, pop, -jnp.asarray(s))
         i = int(np.nanargmax(s))
         if s[i] > best[0]:
