@@ -167,7 +167,9 @@ class Model:
     def foot_length(self) -> float:
         """Heel-to-ball distance of the right foot [m]."""
         b = self.body
-        return float(np.linalg.norm(b.site_pos[b.site_id("ball_r")] - b.site_pos[b.site_id("heel_r")]))
+        return float(
+            np.linalg.norm(b.site_pos[b.site_id("ball_r")] - b.site_pos[b.site_id("heel_r")])
+        )
 
     # ------------------------------------------------------------- kinematics
     def points(self, qpos, push_h):
@@ -356,9 +358,7 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
     mg = model.mass * 9.81
 
     # 4. controller: ground-load filter, phases, sensors -> delay lines -> stimulation
-    rstate, stance, td, ds = update_phase(
-        model.reflex, s.reflex, grf[:, 1], mg, s.t, s.qpos[2], dt
-    )
+    rstate, stance, td, ds = update_phase(model.reflex, s.reflex, grf[:, 1], mg, s.t, s.qpos[2], dt)
     sensors = sensor_array(
         f_mtu / jnp.maximum(jnp.asarray(table.f_max, dtype), 1e-9),
         s.muscle.l_ce / jnp.asarray(table.l_opt, dtype),
@@ -375,15 +375,17 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
     stim, lines = delayed_stimulation(p, rstate, sensors, model.law)
     rstate = rstate.replace(lines=lines)
 
-    # 5. muscle state and metabolic energy
-    mstate, info = mus.muscle_step(table, s.muscle, stim, l_mtu, dt, cfg.muscle_substeps)
+    # 5. semi-implicit Euler (as MuJoCo's Euler integrator; all joints are hinge/slide)
+    qvel = s.qvel + dt * qacc
+    qpos = s.qpos + dt * qvel
+
+    # 6. muscle state over the same step, against the MTU lengths at its end (the joints
+    # have moved with the tendon forces of its start), and metabolic energy
+    l_mtu_end = mus.mtu_length(table, q_to_phi(qpos[legq]))
+    mstate, info = mus.muscle_step(table, s.muscle, stim, l_mtu_end, dt, cfg.muscle_substeps)
     rate = energy_mod.metabolic_rate(
         table, info["stim"], info["act"], info["l_ce"], info["v_ce"], info["f_ce"], info["f_mtu"]
     ).sum()
-
-    # 6. semi-implicit Euler (as MuJoCo's Euler integrator; all joints are hinge/slide)
-    qvel = s.qvel + dt * qacc
-    qpos = s.qpos + dt * qvel
 
     t = s.t + dt
     energy = s.energy + rate * dt
