@@ -60,9 +60,16 @@ def run_case(kind: str, batch: int, steps: int, repeats: int) -> dict:
             t0 = time.perf_counter()
             rollout.rollout(m, datas, state, nstep=steps)
             best = min(best, time.perf_counter() - t0)
-        return {"kind": kind, "batch": batch, "seconds": best, "steps": steps,
-                "env_steps_per_s": batch * steps / best, "rtf": batch * steps * dt / best,
-                "peak_mib": _peak_mib(), "threads": nthread}
+        return {
+            "kind": kind,
+            "batch": batch,
+            "seconds": best,
+            "steps": steps,
+            "env_steps_per_s": batch * steps / best,
+            "rtf": batch * steps * dt / best,
+            "peak_mib": _peak_mib(),
+            "threads": nthread,
+        }
 
     cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
     keys = jax.random.split(jax.random.PRNGKey(0), batch)
@@ -96,9 +103,16 @@ def run_case(kind: str, batch: int, steps: int, repeats: int) -> dict:
         t0 = time.perf_counter()
         jax.block_until_ready(run(arg))
         best = min(best, time.perf_counter() - t0)
-    return {"kind": kind, "batch": batch, "seconds": best, "steps": steps,
-            "env_steps_per_s": batch * steps / best, "rtf": batch * steps * dt / best,
-            "peak_mib": _peak_mib(), "compile_s": compile_s}
+    return {
+        "kind": kind,
+        "batch": batch,
+        "seconds": best,
+        "steps": steps,
+        "env_steps_per_s": batch * steps / best,
+        "rtf": batch * steps * dt / best,
+        "peak_mib": _peak_mib(),
+        "compile_s": compile_s,
+    }
 
 
 def profile(batch: int, steps: int, out: str) -> None:
@@ -132,9 +146,19 @@ def main(argv=None):
     for b in a.batches:
         for k in a.kinds:
             out = subprocess.run(
-                [sys.executable, __file__, "--one", k, str(b), "--steps", str(a.steps),
-                 "--repeats", str(a.repeats)],
-                capture_output=True, text=True,
+                [
+                    sys.executable,
+                    __file__,
+                    "--one",
+                    k,
+                    str(b),
+                    "--steps",
+                    str(a.steps),
+                    "--repeats",
+                    str(a.repeats),
+                ],
+                capture_output=True,
+                text=True,
             )
             line = [x for x in out.stdout.splitlines() if x.startswith("{")]
             if out.returncode != 0 or not line:
@@ -151,8 +175,10 @@ def main(argv=None):
         if "error" in r:
             print(f"{r['batch']:>6} {r['kind']:>5}  failed: {r['error']}")
             continue
-        print(f"{r['batch']:>6} {r['kind']:>5} {r['env_steps_per_s']:>12,.0f} {r['rtf']:>10.1f} "
-              f"{r['peak_mib']:>9.0f}")
+        print(
+            f"{r['batch']:>6} {r['kind']:>5} {r['env_steps_per_s']:>12,.0f} {r['rtf']:>10.1f} "
+            f"{r['peak_mib']:>9.0f}"
+        )
     print("\nratios (same run):")
     for b in a.batches:
         f, m, c = by.get(("full", b)), by.get(("mjx", b)), by.get(("c", b))

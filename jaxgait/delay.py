@@ -41,4 +41,3 @@ def steps_for(delay_s: float, dt: float) -> int:
     if n < 1 or abs(n * dt - delay_s) > 1e-9 + 1e-6 * delay_s:
         raise ValueError(f"delay {delay_s} s is not a whole number (>=1) of steps of {dt} s")
     return int(n)
-

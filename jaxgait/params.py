@@ -66,7 +66,8 @@ class ParamTable:
             return self.names.index(name)
         except ValueError:
             raise KeyError(
-                f"unknown parameter {name!r} for table {self.name!r}; known: {', '.join(self.names)}"
+                f"unknown parameter {name!r} for table {self.name!r}; "
+                f"known: {', '.join(self.names)}"
             ) from None
 
     def unpack(self, vec) -> dict:

@@ -5,8 +5,9 @@ three ring buffers (5 ms hip, 10 ms knee, 20 ms ankle muscles); the stimulation 
 pure function of a delayed sensor vector and the parameter dict, evaluated once per delay
 group, and each muscle takes the result of its own group.
 
-Phases per leg: stance (filtered ground load above a threshold, with hysteresis), swing, and stance end
-(trailing leg in double support: both legs loaded and the other leg touched down last).
+Phases per leg: stance (filtered ground load above a threshold, with hysteresis), swing, and
+stance end (trailing leg in double support: both legs loaded and the other leg touched down
+last).
 
 Stance (Table 2.4), with e = theta - theta_ref, u_i = k_pi e + k_d dtheta, Fb_g = k_bw F/(Mg):
   SOL = S0 + G_SOL F_SOL
@@ -17,7 +18,8 @@ Stance (Table 2.4), with e = theta - theta_ref, u_i = k_pi e + k_d dtheta, Fb_g 
   GLU = S0 + [u_2]+ Fb_g(ipsi) - DS delta_S
   HFL = S0 + [u_1]- Fb_g(ipsi) + DS delta_S
 Swing (the thesis table is blank; Geyer & Herr 2010 as in SPEC 1.3):
-  HFL = S0 + k_lean (theta_TO - theta_ref) + G_HFL [l_HFL - loff_HFL]+ - G_HAM_HFL [l_HAM - loff_HAM]+
+  HFL = S0 + k_lean (theta_TO - theta_ref) + G_HFL [l_HFL - loff_HFL]+
+            - G_HAM_HFL [l_HAM - loff_HAM]+
   HAM = S0 + G_HAM F_HAM;  GLU = S0 + G_GLU F_GLU;  TA = S0 + G_TA [l_TA - loff_TA]+
   SOL = S0;  GAS = S0;  VAS = 0.
 Force feedback F is F_mtu / F_max, length feedback l is l_ce / l_opt (eq. 2.31-2.32);
@@ -123,9 +125,7 @@ def update_phase(cfg: ReflexConfig, st: ReflexState, grf_n, mg, t, theta, dt):
     return new, stance, touchdown, ds
 
 
-def sensor_array(
-    f_norm, l_norm, load, stance, ds, theta, dtheta, phi, dphi, theta_to, dcom
-):
+def sensor_array(f_norm, l_norm, load, stance, ds, theta, dtheta, phi, dphi, theta_to, dcom):
     """Pack the per-leg sensors into (2, N_SENSORS) (see the S_* layout).
 
     phi, dphi: (2, 3) GH joint angles (hip, knee, ankle) and rates; dcom: (2,) normalised

@@ -20,9 +20,9 @@ environments; ``jit`` it at the edge (see :func:`make_rollout`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property, partial
-from typing import Callable
 
 import jax
 import jax.numpy as jnp
@@ -39,9 +39,9 @@ from jaxgait.contact import (
     contact_rows,
     init_contact,
 )
+from jaxgait.envs import Env, push_force
 from jaxgait.joints import SoftLimits, q_to_phi
 from jaxgait.params import FBL, ParamTable
-from jaxgait.rows import implicit_row_velocities
 from jaxgait.reflex import (
     ReflexConfig,
     ReflexState,
@@ -51,7 +51,7 @@ from jaxgait.reflex import (
     sensor_array,
     update_phase,
 )
-from jaxgait.envs import Env, push_force
+from jaxgait.rows import implicit_row_velocities
 from jaxgait.trace import Events, Summary, Trace
 
 CONTACT_SITES = ("heel_r", "ball_r", "heel_l", "ball_l")

@@ -22,7 +22,9 @@ def test_masses_and_lengths_from_the_mjcf(body):
     m = body.mj_model
     assert m.body("shank_r").pos[2] == pytest.approx(-0.5)
     assert m.body("foot_r").pos[2] == pytest.approx(-0.5)
-    assert body.site_pos[body.site_id("ball_r"), 0] - body.site_pos[body.site_id("heel_r"), 0] == pytest.approx(0.2)
+    assert body.site_pos[body.site_id("ball_r"), 0] - body.site_pos[
+        body.site_id("heel_r"), 0
+    ] == pytest.approx(0.2)
 
 
 def test_planar_kinematics_match_mujoco(body):
@@ -40,7 +42,9 @@ def test_planar_kinematics_match_mujoco(body):
         for k, i in enumerate(ids):
             mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, i, vel, 0)
             np.testing.assert_allclose(v[k], vel[[3, 5]], atol=1e-12)
-        np.testing.assert_allclose(body.com(jnp.asarray(d.qpos)), d.subtree_com[0][[0, 2]], atol=1e-12)
+        np.testing.assert_allclose(
+            body.com(jnp.asarray(d.qpos)), d.subtree_com[0][[0, 2]], atol=1e-12
+        )
         # J^T F by vjp equals MuJoCo's site Jacobian transpose
         jacp = np.zeros((3, m.nv))
         mujoco.mj_jacSite(m, d, jacp, None, ids[1])

@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from jaxgait import terrain
-from jaxgait.contact import ContactParams, contact_finalize, contact_forces, contact_rows, init_contact
+from jaxgait.contact import (
+    ContactParams,
+    contact_finalize,
+    contact_forces,
+    contact_rows,
+    init_contact,
+)
 from jaxgait.rows import implicit_row_velocities
 
 jax.config.update("jax_enable_x64", True)
@@ -50,12 +56,16 @@ def test_stick_slip_stick():
     assert bool(st2.sliding[0])
     assert float(f[0, 0]) == pytest.approx(-0.8 * float(fn[0]))
     # sliding fast: keeps sliding, friction opposes the motion, anchor follows the point
-    f, st3, fn = contact_forces(CP, ter, st2, jnp.asarray([[0.05, -0.002]]), jnp.asarray([[0.5, 0.0]]))
+    f, st3, fn = contact_forces(
+        CP, ter, st2, jnp.asarray([[0.05, -0.002]]), jnp.asarray([[0.5, 0.0]])
+    )
     assert bool(st3.sliding[0])
     assert float(f[0, 0]) == pytest.approx(-0.8 * float(fn[0]))
     assert float(st3.anchor[0, 0]) == pytest.approx(0.05)
     # nearly stopped (< v_limit): sticks again where it is
-    f, st4, _ = contact_forces(CP, ter, st3, jnp.asarray([[0.05, -0.002]]), jnp.asarray([[0.005, 0.0]]))
+    f, st4, _ = contact_forces(
+        CP, ter, st3, jnp.asarray([[0.05, -0.002]]), jnp.asarray([[0.005, 0.0]])
+    )
     assert not bool(st4.sliding[0])
     assert float(st4.anchor[0, 0]) == pytest.approx(0.05)
 
@@ -77,8 +87,13 @@ def test_implicit_rows_single_mass_matches_backward_euler():
     m, dt, c, a, v, g = 0.2, 5e-4, 2.0e4, 50.0, -1.0, -9.81
     J = jnp.ones((1, 1))
     y, _ = implicit_row_velocities(
-        J, jnp.asarray([a]), jnp.asarray([c]), jnp.asarray([v]), jnp.asarray([g]),
-        jnp.asarray([[1 / m]]), dt,
+        J,
+        jnp.asarray([a]),
+        jnp.asarray([c]),
+        jnp.asarray([v]),
+        jnp.asarray([g]),
+        jnp.asarray([[1 / m]]),
+        dt,
     )
     assert float(y[0]) == pytest.approx((v + dt * (g + a / m)) / (1 + dt * c / m))
 
@@ -94,8 +109,13 @@ def test_implicit_damping_is_stable_where_explicit_is_not():
         vel = jnp.asarray([[0.0, vz]])
         rows = contact_rows(CP, ter, st, pos, vel)
         y, _ = implicit_row_velocities(
-            jnp.ones((1, 1)), rows.a_n, rows.c_n, jnp.asarray([vz]), jnp.asarray([-9.81]),
-            jnp.asarray([[1 / m]]), dt,
+            jnp.ones((1, 1)),
+            rows.a_n,
+            rows.c_n,
+            jnp.asarray([vz]),
+            jnp.asarray([-9.81]),
+            jnp.asarray([[1 / m]]),
+            dt,
         )
         _, st, fn = contact_finalize(CP, rows, st, pos, y, jnp.zeros(1))
         vz = vz + dt * (-9.81 + float(fn[0]) / m)

@@ -32,7 +32,9 @@ def test_reflex_delays_per_muscle_group():
     dt = 0.0005
     cfg = reflex.ReflexConfig()
     zero = jnp.zeros((2, reflex.N_SENSORS))
-    st = reflex.init_reflex(cfg, dt, zero.at[:, reflex.S_STANCE].set(1.0), jnp.ones(2), [True, True], 0.0)
+    st = reflex.init_reflex(
+        cfg, dt, zero.at[:, reflex.S_STANCE].set(1.0), jnp.ones(2), [True, True], 0.0
+    )
     p = FBL.unpack(jnp.asarray(FBL.init))
     base = zero.at[:, reflex.S_STANCE].set(1.0)
     kick = base.at[:, reflex.S_F].set(1.0)
@@ -61,7 +63,9 @@ def test_reflex_delay_hip_group():
     p = FBL.unpack(jnp.asarray(FBL.init))
     out = []
     for k in range(30):
-        stim, lines = reflex.delayed_stimulation(p, st, base.at[:, reflex.S_F].set(1.0) if k == 2 else base)
+        stim, lines = reflex.delayed_stimulation(
+            p, st, base.at[:, reflex.S_F].set(1.0) if k == 2 else base
+        )
         st = st.replace(lines=lines)
         out.append(float(stim[0, reflex.GLU]))
     out = np.array(out)

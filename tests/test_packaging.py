@@ -15,8 +15,18 @@ ROOT = Path(__file__).resolve().parents[1]
 def wheel(tmp_path_factory):
     out = tmp_path_factory.mktemp("wheel")
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
-         "-w", str(out), str(ROOT)],
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            str(out),
+            str(ROOT),
+        ],
         check=True,
     )
     (whl,) = out.glob("jaxgait-*.whl")
@@ -33,17 +43,27 @@ def test_wheel_contains_resources(wheel):
 def test_installed_wheel_finds_models(wheel, tmp_path):
     target = tmp_path / "site"
     subprocess.run(
-        [sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "install",
+            "--no-deps",
+            "-q",
+            "--target",
+            str(target),
+            str(wheel),
+        ],
         check=True,
     )
     code = (
         "import jaxgait, jaxgait.resources as r, jaxgait.refdata as d;"
         "from jaxgait.body import load_body;"
         "assert '_resources' in str(r.model_path('fbl_planar')), r.model_path('fbl_planar');"
-        "assert str(r.models_dir()).startswith(%r);"
+        f"assert str(r.models_dir()).startswith({str(target)!r});"
         "b = load_body(); assert abs(b.total_mass - 80) < 1e-9;"
         "assert d.winter_walking_kinematics().n_samples == 51;"
-        "print('ok')" % str(target)
+        "print('ok')"
     )
     env = dict(os.environ, PYTHONPATH=str(target))
     out = subprocess.run(

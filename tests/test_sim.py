@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxgait import envs, muscle, sim
+from jaxgait import envs, sim
 from jaxgait.contact import ContactParams
 from jaxgait.joints import SoftLimits
 
@@ -61,7 +61,9 @@ def test_passive_drop_conserves_energy(fbl_model):
         model = _passive(fbl_model, cp, lim)
         cfg = sim.SimConfig(duration=10.0, v0=0.0, fall_hip_height=-10.0, fall_pitch=10.0)
         env = envs.make_env("flat", jax.random.PRNGKey(0))
-        env = jax.tree.map(lambda x: jnp.asarray(x, jnp.float64) if x.dtype == jnp.float32 else x, env)
+        env = jax.tree.map(
+            lambda x: jnp.asarray(x, jnp.float64) if x.dtype == jnp.float32 else x, env
+        )
         params = jnp.asarray(model.table.init, jnp.float64)
         s = sim.initial_state(model, params, env, cfg)
         from jaxgait.joints import phi_to_q
@@ -70,7 +72,9 @@ def test_passive_drop_conserves_energy(fbl_model):
         qpos = s.qpos.at[2].set(0.0).at[3:6].set(q_leg).at[6:9].set(q_leg)
         lowest = float(np.min(np.asarray(model.points(qpos, 0.0))[:4, 1]))
         s = s.replace(qpos=qpos.at[1].add(0.05 - lowest))  # feet 5 cm above the ground
-        step = jax.jit(lambda s: jax.lax.fori_loop(0, 50, lambda i, s: sim.step(model, cfg, params, env, s), s))
+        step = jax.jit(
+            lambda s: jax.lax.fori_loop(0, 50, lambda i, s: sim.step(model, cfg, params, env, s), s)
+        )
         energies, min_z = [], []
         for _ in range(40):  # 1 s
             s = step(s)
@@ -92,10 +96,14 @@ def test_integrator_matches_mujoco_c_in_flight(fbl_model):
         model = _passive(fbl_model, limits=SoftLimits(lower=(-9.0,) * 3, upper=(9.0,) * 3))
         cfg = sim.SimConfig(duration=10.0, v0=1.0, fall_hip_height=-10.0, fall_pitch=10.0)
         env = envs.make_env("flat", jax.random.PRNGKey(0))
-        env = jax.tree.map(lambda x: jnp.asarray(x, jnp.float64) if x.dtype == jnp.float32 else x, env)
+        env = jax.tree.map(
+            lambda x: jnp.asarray(x, jnp.float64) if x.dtype == jnp.float32 else x, env
+        )
         params = jnp.asarray(model.table.init, jnp.float64)
         s = sim.initial_state(model, params, env, cfg)
-        s = s.replace(qpos=s.qpos.at[1].add(1.0), qvel=s.qvel.at[3:].set(jnp.asarray([1, -2, 3, -1, 2, -3.0])))
+        s = s.replace(
+            qpos=s.qpos.at[1].add(1.0), qvel=s.qvel.at[3:].set(jnp.asarray([1, -2, 3, -1, 2, -3.0]))
+        )
         m = model.body.mj_model
         d = mujoco.MjData(m)
         d.qpos[:] = np.asarray(s.qpos)
@@ -136,7 +144,9 @@ def test_fall_stops_and_freezes_summary(fbl_model):
     roll = sim.make_rollout(fbl_model, cfg, batched=False)
     table = fbl_model.table
     weak = table.pack({"G_VAS": table.lower[table.index("G_VAS")], "G_SOL": 0.8, "S0_VAS": 0.01})
-    tr, ev, sm, s = roll(jnp.asarray(weak, jnp.float32), envs.make_env("flat", jax.random.PRNGKey(0)))
+    tr, ev, sm, s = roll(
+        jnp.asarray(weak, jnp.float32), envs.make_env("flat", jax.random.PRNGKey(0))
+    )
     assert bool(sm.fell)
     assert float(sm.duration) < 3.0
     alive = np.asarray(tr.alive)

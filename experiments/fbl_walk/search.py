@@ -12,7 +12,8 @@ The shipped preset was made in two runs (from the repository root):
 
     python experiments/fbl_walk/search.py --objective walk --generations 40 --duration 12 \
         --out experiments/fbl_walk/run1
-    python experiments/fbl_walk/search.py --objective refine --init experiments/fbl_walk/run1/best.json \
+    python experiments/fbl_walk/search.py --objective refine \
+        --init experiments/fbl_walk/run1/best.json \
         --sigma 0.05 --duration 20 --out experiments/fbl_walk/run2
 
 Writes ``best.json`` (a preset) and ``history.csv`` into ``--out`` after every generation.
@@ -47,7 +48,9 @@ def main(argv=None):
     ap.add_argument("--init", type=str, default=None, help="preset JSON to start from")
     ap.add_argument("--objective", choices=("walk", "refine"), default="walk")
     ap.add_argument(
-        "--push", type=float, default=0.0,
+        "--push",
+        type=float,
+        default=0.0,
         help="if > 0, each candidate is also scored with one push of this amplitude [N] at a "
         "random time (fresh every generation) and keeps its worse score",
     )
@@ -67,7 +70,9 @@ def main(argv=None):
     upper = jnp.asarray(table.upper, jnp.float32)
     state = strat.init(key, (lower, upper), jnp.asarray(init, jnp.float32))
     k_env = 2 if a.push > 0 else 1
-    push_cfg = envs.get_env_config("push", magnitude=max(a.push, 1.0), t_min=2.0, t_max=a.duration - 3.0)
+    push_cfg = envs.get_env_config(
+        "push", magnitude=max(a.push, 1.0), t_min=2.0, t_max=a.duration - 3.0
+    )
     roll = sim.make_rollout(model, cfg)
 
     measure = jax.vmap(functools.partial(compute_measures, skip=2))
@@ -93,24 +98,34 @@ def main(argv=None):
         pop, state = strat.ask(k, state)
         env = envs.make_env_batch("flat", jax.random.split(k, a.popsize))
         if k_env == 2:  # worst of (flat, flat + one push at a random time)
-            pushed = envs.make_env_batch(push_cfg, jax.random.split(jax.random.fold_in(k, 1), a.popsize))
+            pushed = envs.make_env_batch(
+                push_cfg, jax.random.split(jax.random.fold_in(k, 1), a.popsize)
+            )
             env = jax.tree.map(lambda x, y: jnp.concatenate([x, y]), env, pushed)
         pop_k = jnp.concatenate([pop] * k_env)
         tr, ev, summ_k, _ = roll(pop_k, env)
         s_k = np.asarray(score(tr, ev, summ_k)).reshape(k_env, a.popsize)
         worst = np.argmin(s_k, axis=0)
         s = s_k[worst, np.arange(a.popsize)]
-        summ = jax.tree.map(lambda x: np.asarray(x).reshape(k_env, a.popsize)[worst, np.arange(a.popsize)], summ_k)
+        pick = (worst, np.arange(a.popsize))
+        summ = jax.tree.map(lambda x, p=pick: np.asarray(x).reshape(k_env, a.popsize)[p], summ_k)
         state = strat.tell(state, pop, -jnp.asarray(s))
         i = int(np.nanargmax(s))
         if s[i] > best[0]:
             best = (float(s[i]), np.asarray(pop[i]))
             dur = float(summ.duration[i])
             save_preset(
-                a.out / "best.json", "fbl", table, best[1],
+                a.out / "best.json",
+                "fbl",
+                table,
+                best[1],
                 description="CMA-ES walking search from the Geyer-Herr G gain family",
-                score=best[0], distance_m=float(summ.distance[i]), duration_s=dur,
-                fell=bool(summ.fell[i]), generation=g, seed=a.seed,
+                score=best[0],
+                distance_m=float(summ.distance[i]),
+                duration_s=dur,
+                fell=bool(summ.fell[i]),
+                generation=g,
+                seed=a.seed,
             )
         v = float(summ.distance[i] / max(float(summ.duration[i]), 1e-6))
         line = (
