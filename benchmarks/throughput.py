@@ -14,7 +14,8 @@ same run.  Usage::
 
     python benchmarks/throughput.py                   # batches 1 64 512 4096
     python benchmarks/throughput.py --batches 64 512 --steps 400
-    python benchmarks/throughput.py --profile 512     # where the time goes (XLA profile)
+    python benchmarks/throughput.py --breakdown 512   # where the time goes, part by part
+    python benchmarks/throughput.py --profile 512     # an XLA trace for TensorBoard/Perfetto
 """
 
 from __future__ import annotations
@@ -115,6 +116,97 @@ def run_case(kind: str, batch: int, steps: int, repeats: int) -> dict:
     }
 
 
+def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
+    """Where the time goes: the full step next to variants with one part removed or alone.
+
+    All variants run in this one process, interleaved, so their ratios are comparable.
+    """
+    import dataclasses
+    from functools import partial
+
+    import jax
+    import jax.numpy as jnp
+    from mujoco import mjx
+
+    from jaxgait import envs, muscle, sim
+
+    model = sim.make_model()
+    cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
+    keys = jax.random.split(jax.random.PRNGKey(0), batch)
+    env = envs.make_env_batch("flat", keys)
+    params = jnp.broadcast_to(jnp.asarray(model.table.init, jnp.float32), (batch, model.table.size))
+    s0 = jax.vmap(lambda p, e: sim.initial_state(model, p, e, cfg))(params, env)
+
+    def scan_step(m):
+        def run(s):
+            f = jax.vmap(lambda p, e, s: sim.step(m, cfg, p, e, s))
+            return jax.lax.scan(lambda s, _: (f(params, env, s), None), s, None, length=steps)[0]
+
+        return run
+
+    def const_law(p, s):
+        return jnp.full((2, 7), 0.05, s.dtype)
+
+    explicit = partial(muscle.muscle_step, implicit=False)
+    variants = {
+        "full step": (scan_step(model), s0),
+        "no reflex law (constant stim)": (scan_step(dataclasses.replace(model, law=const_law)), s0),
+    }
+    d0 = jax.vmap(lambda q, v: model._template.replace(qpos=q, qvel=v))(s0.qpos, s0.qvel)
+
+    def mjx_only(fn):
+        def run(d):
+            f = jax.vmap(lambda d: fn(model.mjx_model, d))
+            return jax.lax.scan(lambda d, _: (f(d), None), d, None, length=steps)[0]
+
+        return run
+
+    variants["mjx.step alone"] = (mjx_only(mjx.step), d0)
+    variants["mjx.forward alone"] = (mjx_only(mjx.forward), d0)
+
+    def muscles_only(ms):
+        lm = ms.l_ce + jnp.asarray(model.muscles.l_slack)
+
+        def one(m):
+            return muscle.muscle_step(model.muscles, m, m.act * 0 + 0.3, lm[0], model.dt)[0]
+
+        f = jax.vmap(one)
+        return jax.lax.scan(lambda m, _: (f(m), None), ms, None, length=steps)[0]
+
+    def muscles_explicit(ms):
+        lm = ms.l_ce + jnp.asarray(model.muscles.l_slack)
+
+        def one(m):
+            return explicit(model.muscles, m, m.act * 0 + 0.3, lm[0], model.dt)[0]
+
+        f = jax.vmap(one)
+        return jax.lax.scan(lambda m, _: (f(m), None), ms, None, length=steps)[0]
+
+    variants["muscle_step alone (implicit)"] = (muscles_only, s0.muscle)
+    variants["muscle_step alone (explicit)"] = (muscles_explicit, s0.muscle)
+    compiled = {k: (jax.jit(f), a) for k, (f, a) in variants.items()}
+    for f, a in compiled.values():
+        jax.block_until_ready(f(a))
+    best = {k: float("inf") for k in compiled}
+    for _ in range(repeats):
+        for k, (f, a) in compiled.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(f(a))
+            best[k] = min(best[k], time.perf_counter() - t0)
+    full = best["full step"]
+    rows = []
+    for k, t in best.items():
+        rows.append(
+            {
+                "variant": k,
+                "us_per_env_step": 1e6 * t / (batch * steps),
+                "fraction_of_full": t / full,
+            }
+        )
+        print(f"{k:34s} {1e6 * t / (batch * steps):8.2f} us/env-step   {t / full:6.2f} x full")
+    return rows
+
+
 def profile(batch: int, steps: int, out: str) -> None:
     """Write an XLA/TensorBoard trace of the full step (open with tensorboard or perfetto)."""
     import jax
@@ -134,10 +226,14 @@ def main(argv=None):
     ap.add_argument("--kinds", nargs="+", default=["full", "mjx", "c"])
     ap.add_argument("--one", nargs=2, metavar=("KIND", "BATCH"), help=argparse.SUPPRESS)
     ap.add_argument("--profile", type=int, metavar="BATCH")
+    ap.add_argument("--breakdown", type=int, metavar="BATCH", help="time per part of the step")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
     if a.one:
         print(json.dumps(run_case(a.one[0], int(a.one[1]), a.steps, a.repeats)))
+        return
+    if a.breakdown:
+        breakdown(a.breakdown, a.steps, a.repeats)
         return
     if a.profile:
         profile(a.profile, a.steps, "benchmarks/profile")
