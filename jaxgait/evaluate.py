@@ -36,8 +36,9 @@ import numpy as np
 
 from jaxgait.presets import load_preset, preset_from_dict, resolve_preset
 
-#: Model names accepted by ``--model``. ``fblplus`` is reserved for a future model family;
-#: asking for it (or any name :func:`jaxgait.sim.make_model` does not know) is an error.
+#: Model names accepted by ``--model``: the FBL reflex walker, its FBL+ extension (thesis
+#: 2.1.3) and Taga's oscillator biped; a name :func:`jaxgait.sim.make_model` does not know
+#: is an error.
 MODEL_CHOICES = ("fbl", "fblplus", "taga")
 #: Environment names (keys of :data:`jaxgait.envs.ENVIRONMENTS`).
 ENV_CHOICES = (
@@ -173,7 +174,7 @@ def _fbl_model(name: str):
         return sim.make_model(name)
     except KeyError:
         raise EvaluateError(
-            f"model {name!r} is not available in this version of jaxgait (available: fbl, taga)"
+            f"model {name!r} is not available in this version of jaxgait (available: fbl, fblplus, taga)"
         ) from None
 
 

@@ -25,12 +25,14 @@ _OFFSET = np.array([np.pi, np.pi, np.pi / 2])  # hip, knee, ankle
 
 def q_to_phi(q_leg: jax.Array) -> jax.Array:
     """(..., 3) Winter joint angles (hip, knee, ankle) [rad] -> GH2010 angles [rad]."""
-    return _OFFSET - q_leg
+    q_leg = jnp.asarray(q_leg)
+    return jnp.asarray(_OFFSET, q_leg.dtype) - q_leg
 
 
 def phi_to_q(phi: jax.Array) -> jax.Array:
     """Inverse of :func:`q_to_phi`."""
-    return _OFFSET - phi
+    phi = jnp.asarray(phi)
+    return jnp.asarray(_OFFSET, phi.dtype) - phi
 
 
 @dataclass(frozen=True)

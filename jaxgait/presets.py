@@ -51,8 +51,11 @@ class PresetError(ValueError):
 
 
 def param_tables() -> dict[str, ParamTable]:
-    """Every :class:`ParamTable` defined in :mod:`jaxgait.params`, by table name."""
-    return {v.name: v for v in vars(params_mod).values() if isinstance(v, ParamTable)}
+    """Every :class:`ParamTable` of :mod:`jaxgait.params` and :mod:`jaxgait.reflex_plus`."""
+    from jaxgait import reflex_plus
+
+    mods = (params_mod, reflex_plus)
+    return {v.name: v for m in mods for v in vars(m).values() if isinstance(v, ParamTable)}
 
 
 def available_models() -> tuple[str, ...]:

@@ -191,8 +191,12 @@ def make_model(name: str = "fbl", timestep: float | None = None) -> Model:
 
     ``timestep`` [s] overrides the MJCF's physics step (delays must stay whole steps).
     """
+    if name == "fblplus":
+        from jaxgait.reflex_plus import make_fblplus_model
+
+        return make_fblplus_model(timestep)
     if name != "fbl":
-        raise KeyError(f"unknown model {name!r}; available: fbl")
+        raise KeyError(f"unknown model {name!r}; available: fbl, fblplus")
     body = load_body("fbl_planar", timestep)
     return Model(body=body, muscles=mus.GEYER7, table=FBL, name="fbl")
 

@@ -9,7 +9,12 @@ from mujoco import mjx
 
 from jaxgait.body import load_body
 
-jax.config.update("jax_enable_x64", True)
+
+@pytest.fixture(autouse=True)
+def _float64():
+    """Exact comparisons need float64; scoped to this module's tests."""
+    with jax.enable_x64(True):
+        yield
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,14 @@ from jaxgait.contact import (
 )
 from jaxgait.rows import implicit_row_velocities
 
-jax.config.update("jax_enable_x64", True)
+
+@pytest.fixture(autouse=True)
+def _float64():
+    """Exact comparisons need float64; scoped to this module's tests."""
+    with jax.enable_x64(True):
+        yield
+
+
 CP = ContactParams()
 
 

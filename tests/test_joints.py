@@ -7,7 +7,14 @@ import pytest
 
 from jaxgait.joints import SoftLimits, phi_to_q, q_to_phi, soft_limit_torque
 
-jax.config.update("jax_enable_x64", True)
+
+@pytest.fixture(autouse=True)
+def _float64():
+    """Exact comparisons need float64; scoped to this module's tests."""
+    with jax.enable_x64(True):
+        yield
+
+
 LIM = SoftLimits()
 
 
