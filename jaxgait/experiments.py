@@ -1,0 +1,544 @@
+"""Registry of optimisation experiments (thesis Table 3.1, ch. 3; SPEC §5).
+
+Every experiment is a small frozen :class:`Experiment` config. ``get_experiment(name,
+**overrides)`` returns a copy with fields replaced and checked; :func:`list_experiments`
+describes them all. :func:`jaxgait.train.train` runs one.
+
+=================  =======  ===============  =========  ===============================  =====
+name               model    environment      optimiser  objective                        k
+=================  =======  ===============  =========  ===============================  =====
+``exp1``           FBL      flat [1]         stage PSO  (d, C_speed, -E)                 1
+``exp2``           FBL      flat             stage PSO  (d, C_speed, C_steplengths, -E)  1
+``exp3``           FBL      flat             stage PSO  (d, C_speed, C_steplengths,      1
+                                                        C_angles, -E)
+``exp4``           FBL      flat             PSO        d - aE + bC_angles + cC_steplen.  1
+                                                        + dC_speed (eq. 2.55 + 2.56)
+``exp5``           FBL+     flat             stage PSO  exp2 stages, v* = 2.5 m/s        1
+``exp5_table``     FBL+     push [2]         stage PSO  (d, C_trunk, C_speed, C_angles,  1
+                                                        C_cot), v* = 2.5 m/s
+``exp6a`` / ``b``  FBL/+    random push [3]  stage PSO  (d, C_trunk, C_speed, C_angles,  5
+                                                        C_cot), d > 10 m opens stage 1
+``exp7a`` / ``b``  FBL/+    wavy [4]         stage PSO  as exp6                          5
+``exp3_cmaes``     FBL      flat             CMA-ES     exp3 stages (rank key)           1
+``exp7a_cmaes``    FBL      wavy             CMA-ES     exp7 stages (rank key)           5
+``quickstart``     FBL      flat             CMA-ES     0.5 d + 10 upright + 10 C_speed  1
+                                                        - 0.01 E/d, 8 x 6, 8 s
+=================  =======  ===============  =========  ===============================  =====
+
+Common settings (thesis ch. 3): v* = 1.3 m/s, 60 particles x 150 iterations, d_lim = 35 m on
+flat ground and 120 m on the perturbed environments, entrance conditions of Table 2.8 (see
+:mod:`jaxgait.objective`). Choices made here where the thesis is silent:
+
+* Time limit (``duration``): 60 s for d_lim = 35 m (a 1.3 m/s gait needs 27 s, thesis 2.2.2
+  asks t_lim > 23 s) and 120 s for d_lim = 120 m (92 s at 1.3 m/s).
+* exp4 weights (thesis 2.2.1.1: weights of decreasing orders of magnitude, values not given):
+  distance 1, C_speed 1 [s/m], C_steplengths 0.1, C_angles 0.1, energy 1e-5 [1/J].
+* Robust experiments exp6 use worst of 5 like exp7 (thesis 3.2 evaluates "each particle 5
+  times" on both perturbed environments).
+* exp5 follows the thesis text (flat ground, exp2's stages, v* = 2.5 m/s, SPEC §8);
+  ``exp5_table`` keeps Table 3.1's environment 2 and stage list.
+* quickstart weights: with a time limit and no distance limit, d = v t rewards speed by
+  8 m per m/s over 8 s; C_speed's weight 10 keeps the optimum at v*; E/d at ~300 J/m weighs
+  about 3.
+* Start: the thesis starts from a walking gait (2.2.2.1), here the ``fbl_walk`` preset
+  (``fblplus_walk``, the same gait with neutral FBL+ extras, for the FBL+ experiments);
+  ``init = None`` starts PSO uniformly in the ranges (CMA-ES at the box centre), ``"table"``
+  at the parameter table's initial values (Geyer's gains).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+#: Model families an experiment may name; availability is checked by :mod:`jaxgait.train`.
+MODELS = ("fbl", "fblplus")
+#: Optimisers (keys of :data:`jaxgait.optim.STRATEGIES`).
+OPTIMISERS = ("pso", "stage_pso", "cmaes")
+#: Version of the config format written to JSON (bump when fields change meaning).
+CONFIG_FORMAT = 1
+
+
+class ExperimentError(ValueError):
+    """Unknown experiment, unknown field or invalid value; the message lists valid choices."""
+
+
+def _pairs(x: Any, what: str) -> tuple[tuple[str, Any], ...]:
+    """Mapping or sequence of pairs -> tuple of (str, value) pairs (order kept)."""
+    if x is None:
+        return ()
+    if isinstance(x, Mapping):
+        items = list(x.items())
+    else:
+        try:
+            items = [tuple(p) for p in x]
+        except TypeError:
+            raise ExperimentError(
+                f"{what} must be a mapping or a list of pairs, got {x!r}"
+            ) from None
+    out = []
+    for p in items:
+        if len(p) != 2 or not isinstance(p[0], str):
+            raise ExperimentError(f"{what}: entries must be (name, value) pairs, got {p!r}")
+        out.append((p[0], p[1]))
+    return tuple(out)
+
+
+def _number(name: str, v: Any, rule: str, ok) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ExperimentError(f"invalid {name}={v!r}: must be a number {rule}")
+    if not ok(float(v)):
+        raise ExperimentError(f"invalid {name}={v!r}: must be {rule}")
+    return float(v)
+
+
+def _integer(name: str, v: Any, lo: int) -> int:
+    whole = isinstance(v, int) or (isinstance(v, float) and v.is_integer())
+    if isinstance(v, bool) or not whole or int(v) < lo:
+        raise ExperimentError(f"invalid {name}={v!r}: must be an integer >= {lo}")
+    return int(v)
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One optimisation experiment (a plain, frozen config; JSON via :meth:`to_dict`).
+
+    Attributes:
+      name: registry name (also the default results folder ``runs/<name>``).
+      description: one line.
+      model: model family (``fbl`` or ``fblplus``; checked against :func:`jaxgait.sim.make_model`
+        when the experiment is run).
+      env: environment name (:data:`jaxgait.envs.ENVIRONMENTS`).
+      env_overrides: ((field, value), ...) replaced in the environment config.
+      optimiser: ``stage_pso``, ``pso`` or ``cmaes``.
+      optimiser_options: ((name, value), ...) hyper-parameters (e.g. ``sigma_init`` for CMA-ES,
+        ``init_spread`` for PSO).
+      stages: ((criterion, entrance threshold or None), ...) for a stage objective.
+      weights: ((criterion, weight), ...) for a weighted (scalar) objective.
+      targets: ((name, value), ...), e.g. v_desired [m/s], sl_desired [m].
+      d_lim: distance stopping criterion [m] (inf = none).
+      duration: time limit of a rollout [s].
+      worst_of_k: environments per parameter set per iteration; the worst score is kept.
+      particles: population size.
+      iterations: number of iterations (generations).
+      init: start: a preset name/path, ``"table"`` (table initial values) or None (uniform in
+        the ranges for PSO, box centre for CMA-ES).
+      seed: seed of every random draw of the run (initial swarm, environments, moves).
+      stage_cap: stage PSO only: a particle at stage N reaches stage N+1 at most per iteration
+        (thesis 2.2.1.2).
+      v0: initial forward speed of the body [m/s].
+      batch_size: rollouts per device call (None: the whole population x k at once).
+    """
+
+    name: str
+    description: str = ""
+    model: str = "fbl"
+    env: str = "flat"
+    env_overrides: tuple = ()
+    optimiser: str = "stage_pso"
+    optimiser_options: tuple = ()
+    stages: tuple = ()
+    weights: tuple = ()
+    targets: tuple = (("v_desired", 1.3),)
+    d_lim: float = 35.0
+    duration: float = 60.0
+    worst_of_k: int = 1
+    particles: int = 60
+    iterations: int = 150
+    init: str | None = "fbl_walk"
+    seed: int = 0
+    stage_cap: bool = True
+    v0: float = 1.3
+    batch_size: int | None = None
+
+    def __post_init__(self):
+        s = lambda k, v: object.__setattr__(self, k, v)
+        if not isinstance(self.name, str) or not self.name:
+            raise ExperimentError(f"invalid name={self.name!r}: must be a non-empty string")
+        if not isinstance(self.description, str):
+            raise ExperimentError("description must be a string")
+        if self.model not in MODELS:
+            raise ExperimentError(
+                f"invalid model={self.model!r}; valid models: {', '.join(MODELS)}"
+            )
+        if self.optimiser not in OPTIMISERS:
+            raise ExperimentError(
+                f"invalid optimiser={self.optimiser!r}; valid optimisers: {', '.join(OPTIMISERS)}"
+            )
+        s("env_overrides", _pairs(self.env_overrides, "env_overrides"))
+        s("optimiser_options", _pairs(self.optimiser_options, "optimiser_options"))
+        s(
+            "targets",
+            tuple(
+                (k, _number(f"targets.{k}", v, "", math.isfinite))
+                for k, v in _pairs(self.targets, "targets")
+            ),
+        )
+        s(
+            "weights",
+            tuple(
+                (k, _number(f"weights.{k}", v, "", math.isfinite))
+                for k, v in _pairs(self.weights, "weights")
+            ),
+        )
+        stages = []
+        for e in self.stages if self.stages is not None else ():
+            e = (e, None) if isinstance(e, str) else tuple(e)
+            if len(e) != 2 or not isinstance(e[0], str):
+                raise ExperimentError(
+                    f"stages: entries must be (criterion, threshold|None), got {e!r}"
+                )
+            thr = None if e[1] is None else _number("stage threshold", e[1], "", math.isfinite)
+            stages.append((e[0], thr))
+        s("stages", tuple(stages))
+        s("d_lim", _number("d_lim", self.d_lim, "> 0 (inf for none)", lambda v: v > 0))
+        s(
+            "duration",
+            _number("duration", self.duration, "> 0 and finite", lambda v: 0 < v < math.inf),
+        )
+        s("v0", _number("v0", self.v0, "finite", math.isfinite))
+        s("worst_of_k", _integer("worst_of_k", self.worst_of_k, 1))
+        s("particles", _integer("particles", self.particles, 2))
+        s("iterations", _integer("iterations", self.iterations, 1))
+        s("seed", _integer("seed", self.seed, 0))
+        if self.batch_size is not None:
+            s("batch_size", _integer("batch_size", self.batch_size, 1))
+        if not isinstance(self.stage_cap, bool):
+            raise ExperimentError(f"invalid stage_cap={self.stage_cap!r}: must be true or false")
+        if self.init is not None and (not isinstance(self.init, str) or not self.init):
+            raise ExperimentError(
+                f"invalid init={self.init!r}: a preset name/path, 'table' or null"
+            )
+        self._check_deep()
+
+    def _check_deep(self) -> None:
+        """Check names against the environment, criteria and optimiser registries."""
+        from jaxgait import objective as obj
+        from jaxgait.envs import ENVIRONMENTS, get_env_config
+
+        if self.env not in ENVIRONMENTS:
+            raise ExperimentError(
+                f"invalid env={self.env!r}; valid environments: {', '.join(ENVIRONMENTS)}"
+            )
+        try:
+            get_env_config(self.env, **dict(self.env_overrides))
+        except (ValueError, TypeError) as e:
+            raise ExperimentError(f"env_overrides: {e}") from None
+        try:
+            self.objective()
+        except obj.ObjectiveError as e:
+            raise ExperimentError(f"experiment {self.name!r}: {e}") from None
+        try:
+            self.strategy()
+        except (ValueError, TypeError) as e:
+            raise ExperimentError(f"optimiser_options for {self.optimiser}: {e}") from None
+
+    # ------------------------------------------------------------------ builders
+    def objective(self):
+        """The :class:`~jaxgait.objective.StageObjective` or ``WeightedObjective``."""
+        from jaxgait.objective import make_objective
+
+        return make_objective(
+            stages=self.stages or None,
+            weights=self.weights or None,
+            targets=dict(self.targets),
+            d_lim=self.d_lim,
+        )
+
+    def strategy(self):
+        """The optimiser (:func:`jaxgait.optim.make_strategy`) with ``particles`` candidates."""
+        from jaxgait.optim import make_strategy
+
+        return make_strategy(self.optimiser, self.particles, **dict(self.optimiser_options))
+
+    def env_config(self):
+        """The :class:`~jaxgait.envs.EnvConfig` with ``env_overrides`` applied."""
+        from jaxgait.envs import get_env_config
+
+        return get_env_config(self.env, **dict(self.env_overrides))
+
+    # ------------------------------------------------------------------ JSON
+    def to_dict(self) -> dict:
+        """JSON-ready dict (pairs become objects, stages lists; inf becomes the string "inf")."""
+        d = {}
+        for f in dataclasses.fields(self):
+            if f.name.startswith("_"):
+                continue
+            v = getattr(self, f.name)
+            if f.name in ("env_overrides", "optimiser_options", "targets", "weights"):
+                v = dict(v)
+            elif f.name == "stages":
+                v = [list(p) for p in v]
+            elif isinstance(v, float) and not math.isfinite(v):
+                v = "inf" if v > 0 else "-inf"
+            d[f.name] = v
+        return d
+
+    @classmethod
+    def from_dict(cls, d: Mapping, where: str = "config") -> Experiment:
+        """Inverse of :meth:`to_dict`; unknown keys are an error naming ``where``."""
+        if not isinstance(d, Mapping):
+            raise ExperimentError(f"{where}: an experiment config must be a JSON object")
+        names = field_names()
+        unknown = sorted(set(d) - set(names))
+        if unknown:
+            raise ExperimentError(
+                f"{where}: unknown field(s) {', '.join(unknown)}; valid fields: {', '.join(names)}"
+            )
+        kw = dict(d)
+        for k in ("d_lim", "duration", "v0"):
+            if isinstance(kw.get(k), str) and kw[k] in ("inf", "Infinity"):
+                kw[k] = math.inf
+        try:
+            return cls(**kw)
+        except ExperimentError as e:
+            raise ExperimentError(f"{where}: {e}") from None
+        except TypeError as e:
+            raise ExperimentError(f"{where}: {e}") from None
+
+    def replace(self, **overrides) -> Experiment:
+        """Copy with fields replaced (checked as :func:`get_experiment` does)."""
+        return _replace(self, overrides)
+
+
+def field_names() -> tuple[str, ...]:
+    """Public field names of :class:`Experiment`."""
+    return tuple(f.name for f in dataclasses.fields(Experiment) if not f.name.startswith("_"))
+
+
+def _replace(base: Experiment, overrides: Mapping) -> Experiment:
+    names = field_names()
+    unknown = sorted(set(overrides) - set(names))
+    if unknown:
+        raise ExperimentError(
+            f"unknown field(s) {', '.join(unknown)} for experiment {base.name!r}; "
+            f"valid fields: {', '.join(names)}"
+        )
+    kw = dict(overrides)
+    for k in ("env_overrides", "optimiser_options", "targets"):
+        if k in kw and isinstance(kw[k], Mapping):  # merge into the existing pairs
+            kw[k] = {**dict(getattr(base, k)), **kw[k]}
+    return dataclasses.replace(base, **kw)
+
+
+# ---------------------------------------------------------------------------------- registry
+
+_V = (("v_desired", 1.3),)
+_ROBUST = (("distance", None), ("trunk", 10.0), ("speed", None), ("angles", None), ("cot", None))
+
+
+def _e(**kw) -> Experiment:
+    return Experiment(**kw)
+
+
+EXPERIMENTS: dict[str, Experiment] = {
+    e.name: e
+    for e in (
+        _e(
+            name="exp1",
+            description="Table 3.1 exp 1: flat, FBL, stage PSO (d, C_speed, -E)",
+            stages=(("distance", None), ("speed", None), ("energy", None)),
+        ),
+        _e(
+            name="exp2",
+            description="Table 3.1 exp 2: flat, FBL, stage PSO (d, C_speed, C_steplengths, -E)",
+            stages=(("distance", None), ("speed", None), ("steplengths", None), ("energy", None)),
+        ),
+        _e(
+            name="exp3",
+            description=(
+                "Table 3.1 exp 3: flat, FBL, stage PSO (d, C_speed, C_steplengths, C_angles, -E)"
+            ),
+            stages=(
+                ("distance", None),
+                ("speed", None),
+                ("steplengths", None),
+                ("angles", None),
+                ("energy", None),
+            ),
+        ),
+        _e(
+            name="exp4",
+            description="Table 3.1 exp 4: flat, FBL, standard PSO, weighted eq. 2.55 + C_speed",
+            optimiser="pso",
+            weights=(
+                ("distance", 1.0),
+                ("speed", 1.0),
+                ("steplengths", 0.1),
+                ("angles", 0.1),
+                ("energy", 1e-5),
+            ),
+        ),
+        _e(
+            name="exp5",
+            description="thesis 3.3.1 exp 5: FBL+ running on flat ground, exp2 stages, v* 2.5 m/s",
+            model="fblplus",
+            init="fblplus_walk",
+            stages=(("distance", None), ("speed", None), ("steplengths", None), ("energy", None)),
+            targets=(("v_desired", 2.5),),
+            duration=30.0,
+            v0=2.5,
+        ),
+        _e(
+            name="exp5_table",
+            description="Table 3.1 exp 5 as printed: FBL+ on env 2 (one push), robust stages",
+            model="fblplus",
+            init="fblplus_walk",
+            env="push",
+            stages=_ROBUST,
+            targets=(("v_desired", 2.5),),
+            duration=30.0,
+            v0=2.5,
+        ),
+        _e(
+            name="exp6a",
+            description="Table 3.1 exp 6a: random pushes, FBL, robust stages, worst of 5",
+            env="random_push",
+            stages=_ROBUST,
+            d_lim=120.0,
+            duration=120.0,
+            worst_of_k=5,
+        ),
+        _e(
+            name="exp6b",
+            description="Table 3.1 exp 6b: random pushes, FBL+, robust stages, worst of 5",
+            model="fblplus",
+            init="fblplus_walk",
+            env="random_push",
+            stages=_ROBUST,
+            d_lim=120.0,
+            duration=120.0,
+            worst_of_k=5,
+        ),
+        _e(
+            name="exp7a",
+            description="Table 3.1 exp 7a: wavy ground, FBL, robust stages, worst of 5",
+            env="wavy",
+            stages=_ROBUST,
+            d_lim=120.0,
+            duration=120.0,
+            worst_of_k=5,
+        ),
+        _e(
+            name="exp7b",
+            description="Table 3.1 exp 7b: wavy ground, FBL+, robust stages, worst of 5",
+            model="fblplus",
+            init="fblplus_walk",
+            env="wavy",
+            stages=_ROBUST,
+            d_lim=120.0,
+            duration=120.0,
+            worst_of_k=5,
+        ),
+        _e(
+            name="exp3_cmaes",
+            description="exp3 with CMA-ES (stage fitness as a rank key), sigma 0.1 of the ranges",
+            optimiser="cmaes",
+            optimiser_options=(("sigma_init", 0.1),),
+            stages=(
+                ("distance", None),
+                ("speed", None),
+                ("steplengths", None),
+                ("angles", None),
+                ("energy", None),
+            ),
+        ),
+        _e(
+            name="exp7a_cmaes",
+            description="exp7a with CMA-ES (stage fitness as a rank key), sigma 0.1 of the ranges",
+            optimiser="cmaes",
+            optimiser_options=(("sigma_init", 0.1),),
+            env="wavy",
+            stages=_ROBUST,
+            d_lim=120.0,
+            duration=120.0,
+            worst_of_k=5,
+        ),
+        _e(
+            name="quickstart",
+            description=(
+                "a few-minute CMA-ES run on flat ground from fbl_walk: walk 8 s without "
+                "falling near 1.3 m/s with low energy per metre"
+            ),
+            optimiser="cmaes",
+            optimiser_options=(("sigma_init", 0.03),),
+            weights=(("distance", 0.5), ("upright", 10.0), ("speed", 10.0), ("energy_per_m", 0.01)),
+            targets=_V,
+            d_lim=math.inf,
+            duration=8.0,
+            particles=8,
+            iterations=6,
+        ),
+    )
+}
+
+
+def list_experiments() -> list[str]:
+    """Registry names, in registry order."""
+    return list(EXPERIMENTS)
+
+
+def describe_experiments() -> str:
+    """One line per experiment: name, model, environment, optimiser, size, description."""
+    w = max(len(n) for n in EXPERIMENTS)
+    lines = []
+    for n, e in EXPERIMENTS.items():
+        size = f"{e.particles}x{e.iterations}" + (f" k={e.worst_of_k}" if e.worst_of_k > 1 else "")
+        lines.append(
+            f"{n:<{w}}  {e.model:<7} {e.env:<11} {e.optimiser:<9} {size:<13} {e.description}"
+        )
+    return "\n".join(lines)
+
+
+def get_experiment(name: str, **overrides) -> Experiment:
+    """The registry experiment ``name`` with fields replaced by ``overrides``.
+
+    Mapping fields (``targets``, ``env_overrides``, ``optimiser_options``) given as dicts are
+    merged into the registry values; every other field is replaced.
+
+    Raises:
+      ExperimentError: unknown name (lists the registry), unknown field (lists the fields) or
+        invalid value (says the rule).
+    """
+    if name not in EXPERIMENTS:
+        raise ExperimentError(
+            f"unknown experiment {name!r}; valid experiments: {', '.join(EXPERIMENTS)}"
+        )
+    return _replace(EXPERIMENTS[name], overrides)
+
+
+def load_config(path: str | Path) -> Experiment:
+    """Read an experiment config JSON (a ``config.json`` of a results folder, or a bare
+    :meth:`Experiment.to_dict`). Errors name the file, and the line and column for bad JSON."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise ExperimentError(f"{path}: cannot read config file: {e}") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ExperimentError(
+            f"{path}: invalid JSON at line {e.lineno}, column {e.colno}: {e.msg}"
+        ) from None
+    if isinstance(doc, dict) and "experiment" in doc and isinstance(doc["experiment"], dict):
+        doc = doc["experiment"]
+    return Experiment.from_dict(doc, where=str(path))
+
+
+def resolve_experiment(config: Experiment | str | Path, **overrides) -> Experiment:
+    """An :class:`Experiment` from itself, a registry name or a config JSON path."""
+    if isinstance(config, Experiment):
+        return config.replace(**overrides) if overrides else config
+    s = str(config)
+    if isinstance(config, str) and s in EXPERIMENTS:
+        return get_experiment(s, **overrides)
+    if s.endswith(".json") or Path(s).is_file():
+        exp = load_config(s)
+        return exp.replace(**overrides) if overrides else exp
+    raise ExperimentError(f"unknown experiment {s!r}; valid experiments: {', '.join(EXPERIMENTS)}")

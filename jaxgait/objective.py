@@ -1,0 +1,360 @@
+"""Fitness of a population of rollouts: weighted objectives and stage fitness (thesis 2.2.1-2.2.3).
+
+Two kinds of objective turn the measures of :func:`jaxgait.measures.compute_measures` into a
+score, both MAXIMISED here (the optimisers' conventions are applied by :func:`to_tell`):
+
+* :class:`WeightedObjective`, the single-function objectives of thesis 2.2.3,
+  F = sum_i w_i C_i, e.g. eq. 2.47 ``F = d - alpha E`` is ``{"distance": 1, "energy": alpha}``
+  (the criterion ``energy`` is already -E), eq. 2.52 adds ``beta C_angles``, eq. 2.55
+  ``gamma C_steplengths``, and the final function ``delta C_speed + zeta C_steplength``.
+* :class:`StageObjective`, the stage PSO fitness of thesis 2.2.1.2 / 2.2.3.1: a list of
+  stages ``[(criterion, entrance), ...]``. Stage 0 has no entrance condition; stage s >= 1 is
+  entered when the criterion of stage s-1 exceeds its entrance threshold (the layout of
+  Table 2.8, where the condition is printed in the row of the stage it opens). ``entrance =
+  None`` takes the Table 2.8 condition of the previous stage's criterion
+  (:data:`TABLE_2_8_EXIT`):
+
+  ==============  ===========================  =========================================
+  criterion       condition to pass            threshold on the (maximised) criterion
+  ==============  ===========================  =========================================
+  ``distance``    d > 0.99 d_lim               ``0.99 d_lim`` [m]
+  ``angles``      C_angles > 0.8               ``0.8``
+  ``speed``       abs(v - v*) < 0.05 m/s       ``-0.05`` (C_speed = -abs(v* - v))
+  ``steplengths`` C_steplengths > 6            ``6``
+  ``trunk``       0 < mean trunk lean < 0.105  ``-1e-6`` rad (C_trunk = 0 inside the band,
+                                               thesis 3.2; 1e-6 rad of rounding allowed)
+  ==============  ===========================  =========================================
+
+  ``energy``, ``cot`` and the other criteria have no standard condition and need an explicit
+  threshold if they are not the last stage. The robustness experiments (thesis 3.2) replace
+  the first condition by d > 10 m: ``[("distance", None), ("trunk", 10.0), ...]``.
+
+The thesis also caps the progress of a stage-PSO particle: a particle at stage N is evaluated
+up to stage N+1 only (2.2.1.2); pass ``max_stage = state.stage + 1``.
+
+Robust evaluation (thesis 3.2, SPEC §4): each parameter set is rolled out on k environments
+and the WORST score is kept (:func:`worst_of_k`): the lowest scalar score, or for stage
+fitness the lowest stage and, within it, the lowest value.
+
+Failed rollouts: a rollout whose state became non-finite (see :func:`rollout_valid`) or whose
+criteria are not finite scores NaN, mapped to the worst value of every convention (scalar
+``-inf`` score / ``+inf`` fitness, stage pair ``(-1, -inf)``) before anything reaches an
+optimiser, so it never enters an optimiser state or a best.
+
+Two criteria are added here to the registry of :mod:`jaxgait.criteria` for the scalar
+objectives (both maximised): ``upright`` = 1 if the rollout did not fall, else 0, and
+``energy_per_m`` = -E/d [J/m] (metabolic energy per metre, d floored at 1 mm).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from jaxgait import criteria as crit
+from jaxgait.optim import INVALID_STAGE, canonical_stage, evaluate_stages, stage_rank_key
+
+Measures = Mapping[str, jax.Array]
+
+#: Tolerance [rad] of the trunk band entrance (C_trunk = 0 inside the band, thesis 3.2).
+TRUNK_TOLERANCE = 1e-6
+
+
+def _upright(m: Measures) -> jax.Array:
+    """1 if the rollout ended without a fall, else 0."""
+    return 1.0 - jnp.asarray(m["fell"]).astype(m["distance_m"].dtype)
+
+
+def _energy_per_m(m: Measures) -> jax.Array:
+    """-E/d [J/m] (maximised), the measure ``energy_J_per_m`` (d floored at 1 mm)."""
+    return -m["energy_J_per_m"]
+
+
+#: Criteria defined here in addition to :data:`jaxgait.criteria.CRITERIA` (maximised).
+EXTRA_CRITERIA = {"upright": _upright, "energy_per_m": _energy_per_m}
+
+#: Table 2.8 condition for leaving a stage whose criterion is the key: a function of d_lim [m]
+#: returning the threshold the criterion must exceed.
+TABLE_2_8_EXIT = {
+    "distance": lambda d_lim: 0.99 * d_lim,
+    "angles": lambda d_lim: 0.8,
+    "speed": lambda d_lim: -0.05,
+    "steplengths": lambda d_lim: 6.0,
+    "trunk": lambda d_lim: -TRUNK_TOLERANCE,
+}
+
+#: Typical magnitude of each criterion, used to squash a stage value when a stage objective is
+#: given to a scalar optimiser (:func:`jaxgait.optim.stage_rank_key`).
+CRITERION_SCALE = {
+    "distance": 10.0,
+    "angles": 0.1,
+    "speed": 0.1,
+    "steplengths": 1.0,
+    "steplength": 0.1,
+    "cot": 0.1,
+    "left_right": 1.0,
+    "trunk": 0.05,
+    "energy": 1000.0,
+    "upright": 1.0,
+    "energy_per_m": 50.0,
+}
+
+
+class ObjectiveError(ValueError):
+    """An objective specification is invalid (unknown criterion, missing threshold...)."""
+
+
+def resolve_criterion(name: str) -> str:
+    """Canonical name of a criterion of :mod:`jaxgait.criteria` or of :data:`EXTRA_CRITERIA`."""
+    key = str(name).strip().lower()
+    if key in EXTRA_CRITERIA:
+        return key
+    try:
+        return crit.resolve_name(name)
+    except ValueError:
+        valid = sorted(set(crit.CRITERIA) | set(EXTRA_CRITERIA))
+        raise ObjectiveError(f"unknown criterion {name!r}; valid criteria: {valid}") from None
+
+
+def criterion_value(name: str, measures: Measures, targets: Mapping[str, float]) -> jax.Array:
+    """Value (maximised) of criterion ``name`` for ``measures`` (single or batched)."""
+    key = resolve_criterion(name)
+    if key in EXTRA_CRITERIA:
+        return EXTRA_CRITERIA[key](measures)
+    return crit.criterion(key, measures, **dict(targets))
+
+
+def _check_targets(names: Sequence[str], targets: Mapping[str, float]) -> None:
+    known = {t for ts in crit.CRITERION_TARGETS.values() for t in ts}
+    unknown = sorted(set(targets) - known)
+    if unknown:
+        raise ObjectiveError(f"unknown target(s) {unknown}; valid targets: {sorted(known)}")
+    for n in names:
+        if n == "speed" and "v_desired" not in targets:
+            raise ObjectiveError("criterion 'speed' needs the target v_desired [m/s]")
+        if n == "steplength" and "sl_desired" not in targets:
+            raise ObjectiveError("criterion 'steplength' needs the target sl_desired [m]")
+
+
+def rollout_valid(trace: Any, summary: Any) -> jax.Array:
+    """() bool: the rollout stayed finite (works batched with a leading axis).
+
+    :func:`jaxgait.sim.step` ends a rollout whose state turns non-finite as a fall and freezes
+    its summary from the last finite step, so a blown-up simulation can look like an ordinary
+    fall. A non-finite state persists, so it shows in the first trace row logged after the end;
+    this checks every alive row and that row, plus the summary scalars.
+    """
+    alive = trace.alive.astype(bool)
+    finite_rows = jnp.all(jnp.isfinite(trace.qpos), axis=-1)
+    first_dead = jnp.argmax(~alive, axis=-1)
+    any_dead = jnp.any(~alive, axis=-1)
+    end_row = jnp.take_along_axis(finite_rows, first_dead[..., None], axis=-1)[..., 0]
+    ok = jnp.all(finite_rows | ~alive, axis=-1) & (end_row | ~any_dead)
+    for x in (summary.distance, summary.energy, summary.duration):
+        ok = ok & jnp.isfinite(x)
+    return ok
+
+
+@dataclass(frozen=True)
+class WeightedObjective:
+    """F = sum_i w_i C_i (thesis eq. 2.47, 2.52, 2.55 and the final function of 2.2.3).
+
+    Attributes:
+      weights: ((criterion, weight), ...), criteria maximised (``energy`` is -E [J]).
+      targets: ((name, value), ...), e.g. (("v_desired", 1.3),) [m/s].
+    """
+
+    weights: tuple[tuple[str, float], ...]
+    targets: tuple[tuple[str, float], ...] = ()
+
+    def __post_init__(self):
+        if not self.weights:
+            raise ObjectiveError("a weighted objective needs at least one (criterion, weight)")
+        w = tuple((resolve_criterion(n), float(v)) for n, v in self.weights)
+        for n, v in w:
+            if not math.isfinite(v):
+                raise ObjectiveError(f"weight of {n!r} must be finite, got {v}")
+        object.__setattr__(self, "weights", w)
+        object.__setattr__(self, "targets", tuple((str(k), float(v)) for k, v in self.targets))
+        _check_targets([n for n, _ in w], dict(self.targets))
+
+    kind = "weighted"
+
+    @property
+    def n_stages(self) -> int:
+        return 1
+
+    def score(self, measures: Measures, valid: jax.Array | None = None) -> jax.Array:
+        """(...,) F, maximised; NaN where ``valid`` is False or F is not finite."""
+        targets = dict(self.targets)
+        total = 0.0
+        for name, w in self.weights:
+            total = total + w * criterion_value(name, measures, targets)
+        total = jnp.asarray(total)
+        ok = jnp.isfinite(total) if valid is None else valid & jnp.isfinite(total)
+        return jnp.where(ok, total, jnp.nan)
+
+    def fitness(self, measures: Measures, valid=None, max_stage=None):
+        """``(stage, value)``: stage 0 everywhere (``-1`` if invalid), value = F."""
+        del max_stage
+        f = self.score(measures, valid)
+        return canonical_stage(jnp.zeros(f.shape, jnp.int32), f)
+
+
+@dataclass(frozen=True)
+class StageObjective:
+    """Stage fitness (thesis 2.2.1.2, Table 2.8, Table 3.1).
+
+    Attributes:
+      stages: ((criterion, entrance threshold or None), ...); see the module docstring.
+      d_lim: distance limit [m] for the ``d > 0.99 d_lim`` condition.
+      targets: ((name, value), ...), e.g. (("v_desired", 1.3),).
+    """
+
+    stages: tuple[tuple[str, float | None], ...]
+    d_lim: float = math.inf
+    targets: tuple[tuple[str, float], ...] = ()
+
+    kind = "stage"
+
+    def __post_init__(self):
+        if not self.stages:
+            raise ObjectiveError("a stage objective needs at least one stage")
+        st = []
+        for entry in self.stages:
+            if isinstance(entry, str):
+                entry = (entry, None)
+            name, thr = entry
+            st.append((resolve_criterion(name), None if thr is None else float(thr)))
+        if st[0][1] is not None:
+            raise ObjectiveError(
+                f"stage 0 ({st[0][0]}) has no entrance condition; got threshold {st[0][1]}"
+            )
+        object.__setattr__(self, "stages", tuple(st))
+        object.__setattr__(self, "targets", tuple((str(k), float(v)) for k, v in self.targets))
+        _check_targets([n for n, _ in st], dict(self.targets))
+        self.thresholds  # noqa: B018 - validates the defaults
+
+    @property
+    def criteria(self) -> tuple[str, ...]:
+        """Criterion name of every stage."""
+        return tuple(n for n, _ in self.stages)
+
+    @property
+    def n_stages(self) -> int:
+        return len(self.stages)
+
+    @property
+    def thresholds(self) -> tuple[float, ...]:
+        """(S-1,) entrance thresholds: stage s is entered when criterion s-1 > thresholds[s-1]."""
+        out = []
+        for s in range(1, len(self.stages)):
+            prev, thr = self.stages[s - 1][0], self.stages[s][1]
+            if thr is None:
+                if prev not in TABLE_2_8_EXIT:
+                    raise ObjectiveError(
+                        f"stage {s} ({self.stages[s][0]}) needs an explicit entrance threshold "
+                        f"on {prev!r}: Table 2.8 has conditions for "
+                        f"{sorted(TABLE_2_8_EXIT)} only"
+                    )
+                if prev == "distance" and not math.isfinite(self.d_lim):
+                    raise ObjectiveError(
+                        f"stage {s}: the Table 2.8 condition d > 0.99 d_lim needs a finite d_lim"
+                    )
+                thr = TABLE_2_8_EXIT[prev](self.d_lim)
+            out.append(float(thr))
+        return tuple(out)
+
+    def values(self, measures: Measures) -> jax.Array:
+        """(..., S) criterion of every stage (maximised)."""
+        targets = dict(self.targets)
+        return jnp.stack([criterion_value(n, measures, targets) for n in self.criteria], -1)
+
+    def fitness(self, measures: Measures, valid=None, max_stage=None):
+        """``(stage int32 (...), value (...))``; ``(-1, -inf)`` for invalid rollouts.
+
+        Args:
+          measures: (batched) measures.
+          valid: optional (...) bool from :func:`rollout_valid`.
+          max_stage: optional (...) cap (thesis: a particle at stage N reaches N+1 at most).
+        """
+        c = self.values(measures)
+        ok = jnp.all(jnp.isfinite(c), axis=-1)
+        if valid is not None:
+            ok = ok & valid
+        thr = jnp.asarray(self.thresholds, c.dtype)
+        entrance = c[..., :-1] > thr
+        stage, value = evaluate_stages(c, entrance, max_stage)
+        return canonical_stage(stage, jnp.where(ok, value, jnp.nan))
+
+    def rank_scale(self) -> jax.Array:
+        """(S,) value scale of every stage for :func:`to_tell` with scalar optimisers."""
+        return jnp.asarray([CRITERION_SCALE.get(n, 1.0) for n in self.criteria])
+
+
+Objective = WeightedObjective | StageObjective
+
+
+def make_objective(
+    *,
+    stages: Sequence | None = None,
+    weights: Mapping[str, float] | Sequence | None = None,
+    targets: Mapping[str, float] | None = None,
+    d_lim: float = math.inf,
+) -> Objective:
+    """A :class:`StageObjective` (``stages``) or a :class:`WeightedObjective` (``weights``)."""
+    targets = tuple(sorted((targets or {}).items()))
+    if (stages is None) == (weights is None) or (not stages and not weights):
+        raise ObjectiveError("give either a non-empty stage list or non-empty weights")
+    if stages:
+        return StageObjective(tuple(stages), d_lim=float(d_lim), targets=targets)
+    items = weights.items() if isinstance(weights, Mapping) else weights
+    return WeightedObjective(tuple(items), targets=targets)
+
+
+def worst_of_k(stage: jax.Array, value: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Worst of k evaluations per parameter set (thesis 3.2), by the stage order.
+
+    Args:
+      stage: (P, k) int stages; value: (P, k) values (maximised); NaN is the worst.
+
+    Returns:
+      ``(stage (P,), value (P,))``: the lowest stage and, within it, the lowest value. A
+      parameter set with any failed (NaN) evaluation gets the worst pair ``(-1, -inf)``.
+    """
+    s, v = canonical_stage(stage, value)
+    low = jnp.min(s, axis=-1)
+    vmin = jnp.min(jnp.where(s == low[..., None], v, jnp.inf), axis=-1)
+    return low, jnp.where(low == INVALID_STAGE, -jnp.inf, vmin)
+
+
+def to_tell(optimiser: str, objective: Objective, stage: jax.Array, value: jax.Array):
+    """The fitness a strategy's ``tell`` takes for per-particle ``(stage, value)``.
+
+    * ``stage_pso``: the pair itself (value maximised);
+    * ``pso`` / ``cmaes``: a lower-is-better scalar: ``-value`` for a weighted objective,
+      :func:`jaxgait.optim.stage_rank_key` of the value divided by its stage's
+      :data:`CRITERION_SCALE` for a stage objective; the worst pair maps to ``+inf``.
+    """
+    stage, value = canonical_stage(stage, value)
+    if optimiser == "stage_pso":
+        return stage, value
+    if isinstance(objective, StageObjective):
+        scale = objective.rank_scale().astype(value.dtype)[jnp.maximum(stage, 0)]
+        return stage_rank_key(stage, value / scale)
+    return jnp.where(stage == INVALID_STAGE, jnp.inf, -value)
+
+
+def score_text(objective: Objective, stage, value) -> str:
+    """Readable best score: ``"F 31.24"`` or ``"stage 2 (speed) -0.031"``."""
+    stage, value = int(stage), float(value)
+    if stage == INVALID_STAGE:
+        return "none valid"
+    if isinstance(objective, WeightedObjective):
+        return f"F {value:.4g}"
+    return f"stage {stage} ({objective.criteria[stage]}) {value:.4g}"

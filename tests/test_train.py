@@ -1,0 +1,373 @@
+"""Training runs, experiment registry, checkpoints and the command line (tiny sizes).
+
+Every run here uses 4 particles, 1 s rollouts and 4 rollouts per device call, so the whole
+file compiles one rollout program (shared through :func:`jaxgait.train._batched_rollout`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import io
+import json
+import shutil
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxgait import train as tr
+from jaxgait.checkpoint import (
+    CheckpointError,
+    CheckpointMismatchError,
+    RunCheckpoints,
+)
+from jaxgait.experiments import (
+    EXPERIMENTS,
+    Experiment,
+    ExperimentError,
+    get_experiment,
+    load_config,
+)
+from jaxgait.presets import load_preset
+
+TINY = dict(particles=4, iterations=2, duration=1.0, batch_size=4)
+
+
+def tiny(name, **kw):
+    return get_experiment(name, **{**TINY, **kw})
+
+
+def fblplus_available() -> bool:
+    try:
+        tr.get_model("fblplus")
+        return True
+    except tr.TrainError:
+        return False
+
+
+def quiet(lines):
+    return lines.append
+
+
+# ----------------------------------------------------------------------- registry runs
+
+
+@pytest.mark.parametrize("name", list(EXPERIMENTS))
+def test_every_registry_experiment_runs(name, tmp_path):
+    exp = tiny(name)
+    lines = []
+    if exp.model == "fblplus" and not fblplus_available():
+        with pytest.raises(tr.TrainError, match="model fblplus not available yet"):
+            tr.train(exp, tmp_path / name, progress=quiet(lines))
+        assert not (tmp_path / name / "checkpoints").exists()
+        return
+    res = tr.train(exp, tmp_path / name, progress=quiet(lines), plots=(name == "exp3"))
+    assert res.complete and res.iterations_done == 2 and len(res.history) == 2
+    assert res.best_stage >= 0 and np.isfinite(res.best_value)
+    out = res.out_dir
+    for f in ("config.json", "best.json", "best_params.txt", "history.csv", "measures.json"):
+        assert (out / f).is_file(), f
+    model, vec, doc = load_preset(out / "best.json")  # usable by python -m jaxgait.evaluate
+    np.testing.assert_allclose(vec, res.best_params)
+    assert doc["experiment"] == name
+    meas = json.loads((out / "measures.json").read_text())
+    assert meas["distance_m"] > 0.5 and meas["worst_of"] == exp.worst_of_k
+    assert load_config(out / "config.json") == exp
+    assert (out / "history.csv").read_text().count("\n") == 3
+    progress = [s for s in lines if " it " in s]
+    assert len(progress) == 2 and "rollouts/s" in progress[0] and "ETA" in progress[0]
+    if exp.optimiser == "stage_pso":
+        assert "stages 0:" in progress[0]
+    if name == "exp3":
+        for fig in ("joint_angles", "grf", "activations", "stick_figure", "stage_progress"):
+            assert (out / "plots" / f"{fig}.png").is_file()
+
+
+# ----------------------------------------------------------------------- resume
+
+
+@pytest.mark.parametrize("name", ["exp3", "quickstart"])
+def test_killed_and_resumed_equals_uninterrupted(name, tmp_path):
+    exp = tiny(name, iterations=3)
+    full = tr.train(exp, tmp_path / "full", progress=None, plots=False)
+    part = tr.train(exp, tmp_path / "part", progress=None, plots=False, max_iterations=1)
+    assert not part.complete and part.iterations_done == 1
+    assert not (tmp_path / "part" / "measures.json").exists()
+    lines = []
+    rest = tr.train(exp, tmp_path / "part", resume=True, progress=quiet(lines), plots=False)
+    assert any("resumed from iteration 1" in s for s in lines)
+    assert rest.complete and rest.iterations_done == 3
+    np.testing.assert_array_equal(rest.best_params, full.best_params)
+    assert (rest.best_stage, rest.best_value) == (full.best_stage, full.best_value)
+    drop = lambda rows: [
+        {k: v for k, v in r.items() if k not in ("seconds", "rollouts_per_s")} for r in rows
+    ]
+    assert drop(rest.history) == drop(full.history)
+    a, b = jax.tree.leaves(rest.state.opt_state), jax.tree.leaves(full.state.opt_state)
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    assert rest.measures["distance_m"] == full.measures["distance_m"]
+
+
+def test_resume_without_checkpoint_starts_fresh_and_fresh_run_refuses_old_dir(tmp_path):
+    exp = tiny("exp1", iterations=1)
+    lines = []
+    tr.train(exp, tmp_path, resume=True, progress=quiet(lines), plots=False)
+    assert any("starting from iteration 0" in s for s in lines)
+    before = sorted(p.name for p in (tmp_path / "checkpoints").iterdir())
+    with pytest.raises(tr.TrainError, match="already holds checkpoints"):
+        tr.train(exp, tmp_path, progress=None)
+    assert sorted(p.name for p in (tmp_path / "checkpoints").iterdir()) == before
+
+
+def test_checkpoint_of_another_experiment_is_refused(tmp_path):
+    tr.train(tiny("exp1", iterations=1), tmp_path, progress=None, plots=False)
+    with pytest.raises(CheckpointMismatchError, match=r"'exp1'.*this run is experiment 'exp2'"):
+        tr.train(tiny("exp2", iterations=1), tmp_path, resume=True, progress=None)
+    with pytest.raises(CheckpointMismatchError, match="seed: 0 -> 5"):
+        tr.train(tiny("exp1", iterations=1, seed=5), tmp_path, resume=True, progress=None)
+
+
+def test_full_disk_while_saving_keeps_the_last_good_checkpoint(tmp_path, monkeypatch):
+    exp = tiny("exp1", iterations=2)
+    real_save = RunCheckpoints.save
+    calls = []
+
+    def flaky_save(self, step, state):
+        calls.append(step)
+        if step == 2:  # the disk fills up during the second save
+
+            def boom(*a, **k):
+                raise OSError(errno.ENOSPC, "No space left on device")
+
+            monkeypatch.setattr(self._manager, "save", boom)
+        return real_save(self, step, state)
+
+    monkeypatch.setattr(RunCheckpoints, "save", flaky_save)
+    lines = []
+    res = tr.train(exp, tmp_path, progress=quiet(lines), plots=False)
+    assert res.complete and calls == [1, 2]
+    assert any("disk full" in s and "last good checkpoint is step 1" in s for s in lines)
+    monkeypatch.undo()
+    ck = RunCheckpoints(tmp_path / "checkpoints", tr.config_document(exp))
+    assert ck.steps() == [1]
+    assert not list((tmp_path / "checkpoints").glob("*tmp*"))
+
+
+# ----------------------------------------------------------------------- checkpoints (no sim)
+
+
+def _toy_state(i):
+    return {"x": jnp.arange(3.0) + i, "it": jnp.asarray(i, jnp.int32)}
+
+
+def _abstract():
+    from orbax.checkpoint.utils import to_shape_dtype_struct
+
+    return jax.tree.map(to_shape_dtype_struct, _toy_state(0))
+
+
+CFG = {"format": 1, "jaxgait_version": "t", "experiment": {"name": "toy", "seed": 0}}
+
+
+def test_checkpoints_keep_last_three_and_ignore_partial_saves(tmp_path):
+    ck = RunCheckpoints(tmp_path, CFG, warn=lambda s: None)
+    for i in range(1, 6):
+        assert ck.save(i, _toy_state(i))
+    assert ck.steps() == [3, 4, 5]
+    # a save killed mid-way leaves only orbax's temporary folder: it is not a step
+    (tmp_path / "6.orbax-checkpoint-tmp-1234" / "state").mkdir(parents=True)
+    step, state = RunCheckpoints(tmp_path, CFG, warn=lambda s: None).restore(_abstract())
+    assert step == 5 and int(state["it"]) == 5
+
+
+def test_save_failing_before_the_atomic_rename_leaves_no_step(tmp_path, monkeypatch):
+    """orbax writes into a temporary folder and renames it last: fail right there."""
+    from orbax.checkpoint._src.path import atomicity
+
+    ck = RunCheckpoints(tmp_path, CFG, warn=lambda s: None)
+    assert ck.save(1, _toy_state(1))
+
+    async def no_space(self, *a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(atomicity.AtomicRenameTemporaryPath, "finalize", no_space)
+    warnings = []
+    ck.warn = warnings.append
+    assert not ck.save(2, _toy_state(2))
+    assert "disk full" in warnings[0] and "last good checkpoint is step 1" in warnings[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["1"]
+    monkeypatch.undo()
+    assert ck.save(3, _toy_state(3)) and ck.steps() == [1, 3]
+
+
+def test_corrupt_checkpoint_falls_back_to_the_previous_one(tmp_path):
+    ck = RunCheckpoints(tmp_path, CFG, warn=lambda s: None)
+    for i in (1, 2):
+        ck.save(i, _toy_state(i))
+    for f in (tmp_path / "2" / "state").rglob("*"):
+        if f.is_file():
+            f.write_bytes(b"garbage")
+    warnings = []
+    step, state = RunCheckpoints(tmp_path, CFG, warn=warnings.append).restore(_abstract())
+    assert step == 1 and int(state["it"]) == 1
+    assert any("step 2" in w and "corrupt" in w for w in warnings)
+    shutil.rmtree(tmp_path / "1" / "state")
+    with pytest.raises(CheckpointError, match="no readable checkpoint"):
+        RunCheckpoints(tmp_path, CFG, warn=lambda s: None).restore(_abstract())
+
+
+def test_checkpoint_version_mismatch_names_both(tmp_path):
+    RunCheckpoints(tmp_path, CFG).save(1, _toy_state(1))
+    other = {**CFG, "jaxgait_version": "9.9"}
+    with pytest.raises(CheckpointMismatchError, match=r"jaxgait t.*jaxgait 9\.9"):
+        RunCheckpoints(tmp_path, other).restore(_abstract())
+
+
+def test_checkpoint_folder_that_is_a_file(tmp_path):
+    f = tmp_path / "ck"
+    f.write_text("x")
+    with pytest.raises(CheckpointError, match="not a folder"):
+        RunCheckpoints(f, CFG)
+
+
+# ----------------------------------------------------------------------- bad input
+
+
+def test_unknown_experiment_and_fields_list_the_valid_ones():
+    with pytest.raises(ExperimentError, match="valid experiments: exp1, exp2"):
+        get_experiment("exp99")
+    with pytest.raises(ExperimentError, match="valid fields: name, description"):
+        get_experiment("exp1", partciles=3)
+
+
+@pytest.mark.parametrize(
+    "override, msg",
+    [
+        ({"particles": 0}, "particles"),
+        ({"iterations": 1.5}, "iterations"),
+        ({"worst_of_k": 0}, "worst_of_k"),
+        ({"d_lim": -1.0}, "d_lim"),
+        ({"duration": float("inf")}, "duration"),
+        ({"seed": -1}, "seed"),
+        ({"env": "moon"}, "valid environments"),
+        ({"env_overrides": {"alpha": 1}}, "valid fields"),
+        ({"optimiser": "adam"}, "valid optimisers"),
+        ({"model": "fbl2"}, "valid models"),
+        ({"stages": (("distance", None), ("speed", "x"))}, "stage threshold"),
+        ({"stages": (("distance", None), ("nope", None))}, "unknown criterion"),
+        ({"targets": {"v_wanted": 1.0}}, "unknown target"),
+        ({"optimiser_options": {"c3": 1.0}}, "optimiser_options"),
+    ],
+)
+def test_out_of_range_overrides(override, msg):
+    with pytest.raises(ExperimentError, match=msg):
+        get_experiment("exp3", **override)
+
+
+def test_malformed_config_files(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"name": "x",\n "particles": }')
+    with pytest.raises(ExperimentError, match=r"bad\.json: invalid JSON at line 2"):
+        tr.train(bad, tmp_path / "out")
+    unknown = tmp_path / "unknown.json"
+    unknown.write_text(json.dumps({**EXPERIMENTS["exp1"].to_dict(), "colour": "red"}))
+    with pytest.raises(ExperimentError, match=r"unknown\.json: unknown field\(s\) colour"):
+        load_config(unknown)
+    ranged = tmp_path / "ranged.json"
+    ranged.write_text(json.dumps({**EXPERIMENTS["exp1"].to_dict(), "particles": -4}))
+    with pytest.raises(ExperimentError, match=r"ranged\.json: invalid particles=-4"):
+        load_config(ranged)
+    assert not (tmp_path / "out").exists()
+
+
+def test_config_round_trip_and_inf(tmp_path):
+    for exp in EXPERIMENTS.values():
+        assert Experiment.from_dict(json.loads(json.dumps(exp.to_dict()))) == exp
+    assert EXPERIMENTS["quickstart"].to_dict()["d_lim"] == "inf"
+
+
+def test_bad_init_preset(tmp_path):
+    with pytest.raises(ValueError, match="no preset of that name"):
+        tr.train(tiny("exp1", init="no_such_preset"), tmp_path / "out", progress=None)
+    assert not (tmp_path / "out").exists()
+
+
+# ----------------------------------------------------------------------- command line
+
+
+def _cli(args):
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = tr.main(args)
+    return code, out.getvalue(), err.getvalue()
+
+
+def test_cli_lists_experiments_by_default():
+    for args in ([], ["--list"]):
+        code, out, _ = _cli(args)
+        assert code == 0 and "exp7a" in out and "quickstart" in out
+
+
+def test_cli_errors():
+    code, _, err = _cli(["exp99"])
+    assert code == 2 and "unknown experiment 'exp99'" in err
+    code, _, err = _cli(["exp1", "--set", "particles"])
+    assert code == 2 and "key=value" in err
+    if not fblplus_available():
+        code, _, err = _cli(["exp5", "--iterations", "1"])
+        assert code == 2 and "model fblplus not available yet" in err
+
+
+def test_cli_overrides_only_given_flags(tmp_path):
+    args = [
+        "exp3",
+        "--particles",
+        "4",
+        "--iterations",
+        "1",
+        "--duration",
+        "1",
+        "--out",
+        str(tmp_path),
+        "--no-plots",
+        "--set",
+        "targets.v_desired=1.2",
+        "--set",
+        "batch_size=4",
+    ]
+    code, out, err = _cli(args)
+    assert code == 0, err
+    assert "exp3 it 1/1" in out and "best:" in out
+    saved = load_config(tmp_path / "config.json")
+    assert saved == get_experiment(
+        "exp3", particles=4, iterations=1, duration=1.0, targets={"v_desired": 1.2}, batch_size=4
+    )
+    # resume picks the saved config up; a different experiment name is refused
+    code, _, err = _cli(["exp1", "--resume", "--out", str(tmp_path)])
+    assert code == 2 and "'exp3', not 'exp1'" in err
+    code, out, err = _cli(["exp3", "--resume", "--out", str(tmp_path), "--no-plots"])
+    assert code == 0 and "resumed from iteration 1" in out
+
+
+def test_unavailable_model_is_refused_clearly():
+    with pytest.raises(tr.TrainError, match="model fblminus not available yet"):
+        tr.get_model("fblminus")
+
+
+def test_parse_set():
+    assert tr.parse_set(["a=1", "b=null", "c=inf", "d=text", "t.v=1.5", "t.w=[1, 2]"]) == {
+        "a": 1,
+        "b": None,
+        "c": float("inf"),
+        "d": "text",
+        "t": {"v": 1.5, "w": [1, 2]},
+    }
+
+
+def test_padding_to_devices():
+    assert tr.padded_size(10, 4, None) == (12, 1)
+    assert tr.padded_size(10, 4, 4) == (4, 3)
+    assert tr.padded_size(20, 1, 4) == (4, 5)
