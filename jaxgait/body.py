@@ -16,7 +16,6 @@ A rotation by angle a about +y maps a local vector (x, z) to (x cos a + z sin a,
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import jax
 import jax.numpy as jnp
@@ -52,12 +51,17 @@ class Body:
     site_body: np.ndarray
     site_pos: np.ndarray
 
-    @cached_property
+    @property
     def mjx_model(self):
+        """The MJX model, one per float mode (a float64 copy is kept apart for x64 runs)."""
         from mujoco import mjx
 
-        with jax.ensure_compile_time_eval():  # concrete even if first used while tracing
-            return mjx.put_model(self.mj_model)
+        cache = self.__dict__.setdefault("_mjx_models", {})
+        key = bool(jax.config.jax_enable_x64)
+        if key not in cache:
+            with jax.ensure_compile_time_eval():  # concrete even if first used while tracing
+                cache[key] = mjx.put_model(self.mj_model)
+        return cache[key]
 
     @property
     def total_mass(self) -> float:

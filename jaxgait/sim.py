@@ -139,7 +139,7 @@ class Model:
     def dt(self) -> float:
         return self.body.dt
 
-    @cached_property
+    @property
     def mjx_model(self):
         return self.body.mjx_model
 
@@ -152,12 +152,17 @@ class Model:
         legq = np.array([[b.qpos_adr(j) for j in leg] for leg in LEG_JOINTS])
         return sites, feet, trunk, legq
 
-    @cached_property
+    @property
     def _template(self):
+        """Empty MJX data, one per float mode (see :attr:`Body.mjx_model`)."""
         from mujoco import mjx
 
-        with jax.ensure_compile_time_eval():  # concrete even if first used while tracing
-            return mjx.make_data(self.mjx_model)
+        cache = self.__dict__.setdefault("_templates", {})
+        key = bool(jax.config.jax_enable_x64)
+        if key not in cache:
+            with jax.ensure_compile_time_eval():  # concrete even if first used while tracing
+                cache[key] = mjx.make_data(self.mjx_model)
+        return cache[key]
 
     @property
     def mass(self) -> float:
