@@ -146,10 +146,11 @@ class Model:
     @cached_property
     def _ids(self):
         b = self.body
-        sites = np.array([b.site_id(n) for n in CONTACT_SITES])
-        feet = np.array([b.mj_model.body(n).id for n in ("foot_r", "foot_l")])
-        trunk = b.mj_model.body("trunk").id
-        legq = np.array([[b.qpos_adr(j) for j in leg] for leg in LEG_JOINTS])
+        # plain int32 / int indices: valid in float32 and float64 (x64) runs alike
+        sites = np.array([b.site_id(n) for n in CONTACT_SITES], np.int32)
+        feet = np.array([b.mj_model.body(n).id for n in ("foot_r", "foot_l")], np.int32)
+        trunk = int(b.mj_model.body("trunk").id)
+        legq = np.array([[b.qpos_adr(j) for j in leg] for leg in LEG_JOINTS], np.int32)
         return sites, feet, trunk, legq
 
     @property
@@ -182,7 +183,7 @@ class Model:
         b = self.body
         sites, feet, trunk, _ = self._ids
         o, a = b.frames(qpos)
-        sb = b.site_body[sites]
+        sb = b.site_body[sites].astype(np.int32)
         cp = b._local_to_world(o[sb], a[sb], jnp.asarray(b.site_pos[sites], qpos.dtype))
         m = jnp.asarray(b.mass[1:], qpos.dtype)
         w = b._local_to_world(o[1:], a[1:], jnp.asarray(b.ipos[1:], qpos.dtype))
