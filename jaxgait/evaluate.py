@@ -5,13 +5,16 @@ Command line::
     python -m jaxgait.evaluate PRESET_OR_FILE [--model fbl|fblplus|taga]
         [--env flat|slope_up|slope_down|push|random_push|wavy|increasing_slope]
         [--env-seed N] [--duration S] [--json] [--save-trajectory PATH] [--plots DIR]
+        [--save-scene PATH]
 
 ``PRESET_OR_FILE`` is a shipped preset name, a preset JSON file or a results folder holding
 ``best.json`` (see :mod:`jaxgait.presets`). The model defaults to the preset's ``model``
 field; ``--model`` must agree with it. Without ``--json`` a readable table is printed; with
 ``--json`` exactly one JSON object (see :func:`evaluate` for its keys; non-finite numbers
 are ``null``). ``--save-trajectory`` writes the alive samples as CSV
-(:mod:`jaxgait.trajectory_io`), ``--plots`` the figures of :func:`jaxgait.plots.plot_all`.
+(:mod:`jaxgait.trajectory_io`), ``--plots`` the figures of :func:`jaxgait.plots.plot_all`,
+``--save-scene`` an MJCF scene of the body on the environment's terrain over the walked range
+(:mod:`jaxgait.scene`; open it with ``python -m mujoco.viewer --mjcf PATH``).
 
 Exit codes: 0 success, 2 bad input (unknown preset or parameter, bad environment name,
 non-positive duration, unwritable output, model not available), with a message on stderr.
@@ -50,6 +53,8 @@ ENV_CHOICES = (
     "wavy",
     "increasing_slope",
 )
+#: Ground shown by ``--save-scene`` behind the start and ahead of the end of the walk [m].
+_SCENE_BEHIND, _SCENE_AHEAD = 3.0, 5.0
 
 #: Report keys shown in the readable table: (label, key, format, unit).
 _TABLE_ROWS = (
@@ -174,7 +179,8 @@ def _fbl_model(name: str):
         return sim.make_model(name)
     except KeyError:
         raise EvaluateError(
-            f"model {name!r} is not available in this version of jaxgait (available: fbl, fblplus, taga)"
+            f"model {name!r} is not available in this version of jaxgait "
+            "(available: fbl, fblplus, taga)"
         ) from None
 
 
@@ -348,22 +354,47 @@ def _parser() -> argparse.ArgumentParser:
         metavar="PATH",
         type=Path,
         default=None,
-        help="write the trajectory CSV to PATH",
+        help="write the trajectory CSV to PATH; its columns root_x_m, root_z_m, "
+        "trunk_lean_deg, hip_r_deg, knee_r_deg, ankle_r_deg, hip_l_deg, knee_l_deg, "
+        "ankle_l_deg (degrees converted to radians) are the qpos of the --save-scene model, "
+        "row by row (jaxgait.scene.trajectory_qpos): set data.qpos and call mujoco.mj_forward "
+        "to replay",
     )
     p.add_argument(
         "--plots", metavar="DIR", type=Path, default=None, help="write the PNG figures into DIR"
     )
+    p.add_argument(
+        "--save-scene",
+        metavar="PATH",
+        type=Path,
+        default=None,
+        help="write an MJCF scene to PATH: the body model on the environment's terrain "
+        f"(height field, display only) from {_SCENE_BEHIND:g} m behind to {_SCENE_AHEAD:g} m "
+        "ahead of the walked range; view it with: python -m mujoco.viewer --mjcf PATH",
+    )
     return p
 
 
-def _check_output_file(path: Path) -> None:
+def _check_output_file(path: Path, flag: str = "--save-trajectory") -> None:
     parent = path.expanduser().resolve().parent
     if path.is_dir():
-        raise EvaluateError(f"--save-trajectory {path}: is a folder, need a file path")
+        raise EvaluateError(f"{flag} {path}: is a folder, need a file path")
     if not parent.is_dir():
-        raise EvaluateError(f"--save-trajectory {path}: folder {parent} does not exist")
+        raise EvaluateError(f"{flag} {path}: folder {parent} does not exist")
     if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise EvaluateError(f"--save-trajectory {path}: not writable")
+        raise EvaluateError(f"{flag} {path}: not writable")
+
+
+def scene_range(trace) -> tuple[float, float]:
+    """(x0, x1) [m] of the ground ``--save-scene`` shows for a rollout.
+
+    The range of the root x position (hip) over the alive samples (0 if there are none),
+    widened by 3 m behind and 5 m ahead.
+    """
+    alive = np.asarray(trace.alive, bool).reshape(-1)
+    x = np.asarray(trace.qpos, np.float64)[alive, 0]
+    lo, hi = (float(x.min()), float(x.max())) if x.size else (0.0, 0.0)
+    return lo - _SCENE_BEHIND, hi + _SCENE_AHEAD
 
 
 def _check_output_dir(path: Path) -> None:
@@ -439,14 +470,18 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
         _check_inputs(a.env, a.duration, a.env_seed)
         declared, _, doc, label, file = _load(a.preset)
         name = _choose_model(a.model, declared, label)
-        if name == "taga" and (a.save_trajectory or a.plots):
-            raise EvaluateError("--save-trajectory and --plots are available for FBL models only")
+        if name == "taga" and (a.save_trajectory or a.plots or a.save_scene):
+            raise EvaluateError(
+                "--save-trajectory, --plots and --save-scene are available for FBL models only"
+            )
         if name == "taga":
             _taga_env(a.env)
         if a.save_trajectory is not None:
             _check_output_file(a.save_trajectory)
         if a.plots is not None:
             _check_output_dir(a.plots)
+        if a.save_scene is not None:
+            _check_output_file(a.save_scene, "--save-scene")
         if not a.json:
             print(f"simulating {label} ({name}, {a.env}, {a.duration:g} s)...", file=sys.stderr)
         if name == "taga":
@@ -480,6 +515,12 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
                     measures_dict=result.measures,
                 )
                 rep["plot_files"] = {k: str(v) for k, v in paths.items()}
+            if a.save_scene is not None:
+                from jaxgait.scene import write_scene
+
+                x0, x1 = scene_range(result.trace)
+                p = write_scene(a.save_scene, result.env, x0, x1)  # FBL body: fbl_planar
+                rep["scene_file"] = str(p)
         except OSError as e:
             where = getattr(e, "filename", None) or ""
             return err(f"cannot write output {where}: {e.strerror or e}")
@@ -491,6 +532,11 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
         text += f"\n\ntrajectory written to {rep['trajectory_file']}"
     if "plot_files" in rep:
         text += "\nfigures written: " + ", ".join(rep["plot_files"].values())
+    if "scene_file" in rep:
+        text += (
+            f"\nscene written to {rep['scene_file']} "
+            f"(view: python -m mujoco.viewer --mjcf {rep['scene_file']})"
+        )
     return 0, text
 
 

@@ -414,15 +414,18 @@ def plot_stick_figure(
 
     The stride is the last full right-leg cycle (from a right touchdown to the next); later
     poses are drawn more opaque. Right leg red, left leg blue, trunk black; the ground line
-    is ``terrain`` (flat z = 0 if None).
+    is the profile of ``terrain`` under the drawn poses (its exact polyline,
+    :func:`jaxgait.terrain.terrain_polyline`; flat z = 0 if None).
 
     Args:
       path: PNG file to write.
       trace, events: one rollout.
       model: the :class:`~jaxgait.sim.Model` (its ``body.frames`` gives the segment poses).
-      terrain: :class:`~jaxgait.terrain.Terrain` the rollout ran on.
+      terrain: :class:`~jaxgait.terrain.Terrain` the rollout ran on, or its
+        :class:`~jaxgait.envs.Env` (whose ``terrain`` is drawn).
       every_s: time between drawn poses [s].
     """
+    terrain = getattr(terrain, "terrain", terrain)  # an Env gives its terrain
     rows, note = _stick_rows(trace, events)
     t = _np(trace.t).astype(float)
     if rows.size:
@@ -496,7 +499,8 @@ def plot_all(
       out_dir: folder (created if missing).
       trace, events, summary: one rollout.
       model: the :class:`~jaxgait.sim.Model` (muscle names, body geometry).
-      terrain: the rollout's terrain (stick-figure ground line).
+      terrain: the rollout's :class:`~jaxgait.terrain.Terrain` or
+        :class:`~jaxgait.envs.Env` (stick-figure ground line; flat z = 0 if None).
       measures_dict: output of :func:`jaxgait.measures.compute_measures` (correlations in the
         joint-angle title); computed if None.
       n_cycles: number of last cycles averaged in the cycle figures.

@@ -29,10 +29,19 @@ comma-separated. Columns, in order:
                                the model in table order (FBL: HFL, GLU, HAM, VAS, GAS, SOL, TA)
 ``act_<M>_l``          0..1    the same muscles, left leg
 ``energy_J``           J       cumulative metabolic energy since the start
+``root_x_m``           m       MJCF root slide joint ``root_x`` (qpos[0]): forward
+                               displacement of the trunk body (hip) from its MJCF position
+``root_z_m``           m       MJCF root slide joint ``root_z`` (qpos[1]): vertical
+                               displacement of the hip from its MJCF position (z = 1 m in
+                               ``models/fbl_planar.xml``)
 =====================  ======  ===============================================================
 
 Joint angles follow the Winter convention of :mod:`jaxgait.trace` (flexion and
-dorsiflexion positive), so they compare directly with :mod:`jaxgait.refdata`.
+dorsiflexion positive), so they compare directly with :mod:`jaxgait.refdata`.  They are
+also the MJCF joint coordinates: ``root_x_m``, ``root_z_m``, then ``trunk_lean_deg``,
+``hip_r_deg`` ... ``ankle_l_deg`` in radians are the model's qpos, so a file replays in the
+MJCF scene of :mod:`jaxgait.scene` (:func:`jaxgait.scene.trajectory_qpos`).  The root
+columns come last so that the earlier columns keep their positions.
 
 :func:`write_trajectory_csv` writes atomically (temporary file in the same folder, then
 rename); :func:`read_trajectory_csv` reads a file back into a dict of arrays.
@@ -81,6 +90,8 @@ def trajectory_columns(muscle_names=MUSCLES) -> list[tuple[str, str, str]]:
         for m in muscle_names:
             cols.append((f"act_{m}_{side}", "0..1", f"activation of {m}, {leg} leg"))
     cols.append(("energy_J", "J", "cumulative metabolic energy"))
+    cols.append(("root_x_m", "m", "qpos[0], root_x: forward displacement of the hip"))
+    cols.append(("root_z_m", "m", "qpos[1], root_z: vertical displacement of the hip"))
     return cols
 
 
@@ -125,6 +136,7 @@ def trajectory_table(trace, summary=None, model=None) -> tuple[list[str], np.nda
         act[:, 0, :],
         act[:, 1, :],
         np.asarray(trace.energy, np.float64)[alive][:, None],
+        q[:, 0:2],
     ]
     cols = [c[0] for c in trajectory_columns(names)]
     data = np.concatenate([p.reshape(len(q), -1) for p in parts], axis=1)

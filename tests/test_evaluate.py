@@ -7,11 +7,12 @@ import io
 import json
 import math
 
+import jax
 import numpy as np
 import pytest
 
+from jaxgait import envs, plots, presets, scene, trajectory_io
 from jaxgait import evaluate as ev
-from jaxgait import plots, presets, trajectory_io
 from jaxgait.muscle import MUSCLES
 from jaxgait.params import FBL, save_preset
 from jaxgait.trace import Events, Summary, Trace
@@ -196,6 +197,8 @@ def test_trajectory_csv_round_trip(tmp_path, fbl_model):
     assert d["stance_r"].dtype == bool
     np.testing.assert_allclose(d["energy_J"], trace.energy[:25], rtol=1e-6)
     assert not list(tmp_path.glob(".*tmp"))  # atomic write left no temporary file
+    # the root and angle columns give back the MJCF qpos (replay in a scene)
+    np.testing.assert_allclose(scene.trajectory_qpos(d), trace.qpos[:25], atol=1e-6)
 
 
 # ----------------------------------------------------------------------------- plots
@@ -211,6 +214,20 @@ def test_plots_hand_made(tmp_path, fbl_model, case):
     assert set(paths) == {"joint_angles", "grf", "activations", "stick_figure"}
     for p in paths.values():
         assert p.is_file() and p.stat().st_size > 5000
+
+
+def test_stick_figure_draws_env_terrain(tmp_path, fbl_model):
+    trace, events, _ = hand_trace()
+    slope = envs.make_env(
+        envs.get_env_config("slope_up", start=0.0, grade=0.2), jax.random.PRNGKey(0)
+    )
+    flat = plots.plot_stick_figure(tmp_path / "flat.png", trace, events, fbl_model)
+    up = plots.plot_stick_figure(tmp_path / "up.png", trace, events, fbl_model, terrain=slope)
+    same = plots.plot_stick_figure(
+        tmp_path / "up2.png", trace, events, fbl_model, terrain=slope.terrain
+    )
+    assert up.read_bytes() == same.read_bytes()  # an Env draws its terrain
+    assert up.read_bytes() != flat.read_bytes()
 
 
 def test_plots_no_alive_rows(tmp_path, fbl_model):
@@ -232,6 +249,8 @@ def test_main_bad_inputs(tmp_path, capsys):
         ([str(good), "--model", "fblplus"], "fblplus"),
         ([str(good), "--model", "taga"], "is for model 'fbl'"),
         ([str(good), "--save-trajectory", str(tmp_path / "nodir" / "t.csv")], "nodir"),
+        ([str(good), "--save-scene", str(tmp_path / "nodir" / "s.xml")], "--save-scene"),
+        ([str(good), "--save-scene", str(tmp_path)], "is a folder"),
     ]
     for argv, needle in cases:
         assert ev.main(argv) == 2, argv
@@ -258,6 +277,8 @@ def test_main_taga_dispatch(tmp_path, capsys, monkeypatch):
     assert ev.main([str(p), "--json", "--env", "slope_down"]) == 0
     assert seen["env"] == "slope" and seen["slope"] == -0.05
     assert ev.main([str(p), "--env", "wavy"]) == 2
+    assert ev.main([str(p), "--save-scene", str(tmp_path / "s.xml")]) == 2
+    assert "FBL models only" in capsys.readouterr().err
     assert seen["preset"]["params"] == {"u0": 5.0}
     monkeypatch.delattr(taga, "evaluate_preset")
     assert ev.main([str(p)]) == 2
@@ -291,6 +312,8 @@ def e2e(tmp_path_factory):
         str(d / "traj.csv"),
         "--plots",
         str(d / "plots"),
+        "--save-scene",
+        str(d / "scene.xml"),
     ]
     with contextlib.redirect_stdout(out):
         code = ev.main(argv)
@@ -344,3 +367,50 @@ def test_end_to_end_outputs(e2e):
     for name in ("joint_angles", "grf", "activations", "stick_figure"):
         assert (d / "plots" / f"{name}.png").is_file()
         assert rep["plot_files"][name].endswith(f"{name}.png")
+
+
+def test_end_to_end_scene(e2e):
+    """The scene covers the walked range and replays the trajectory CSV."""
+    import mujoco
+
+    code, text, d = e2e
+    assert code == 0
+    assert json.loads(text)["scene_file"].endswith("scene.xml")
+    m = mujoco.MjModel.from_xml_path(str(d / "scene.xml"))
+    traj = trajectory_io.read_trajectory_csv(d / "traj.csv")
+    q = scene.trajectory_qpos(traj)
+    x0 = m.geom_pos[m.geom(scene.TERRAIN_NAME).id][0] - m.hfield_size[0][0]
+    x1 = m.geom_pos[m.geom(scene.TERRAIN_NAME).id][0] + m.hfield_size[0][0]
+    assert x0 == pytest.approx(q[:, 0].min() - 3.0, abs=1e-6)
+    assert x1 == pytest.approx(q[:, 0].max() + 5.0, abs=1e-6)
+    data = mujoco.MjData(m)
+    for i in (0, len(q) // 2, len(q) - 1):  # replay: the scene's CoM is the logged CoM
+        data.qpos[:] = q[i]
+        mujoco.mj_forward(m, data)
+        com = data.subtree_com[m.body("trunk").id][[0, 2]]
+        np.testing.assert_allclose(com, [traj["com_x_m"][i], traj["com_z_m"][i]], atol=1e-4)
+
+
+def test_save_scene_on_slope(tmp_path, capsys):
+    """--save-scene for a sloped environment: the height field is the env's terrain."""
+    import mujoco
+
+    preset = tmp_path / "init.json"
+    save_preset(preset, "fbl", FBL, FBL.init)
+    path = tmp_path / "slope.xml"
+    argv = [str(preset), "--env", "slope_up", "--duration", "0.3", "--save-scene", str(path)]
+    assert ev.main(argv) == 0
+    assert f"python -m mujoco.viewer --mjcf {path}" in capsys.readouterr().out
+    m = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(m)
+    mujoco.mj_forward(m, data)
+    terrain = envs.make_env("slope_up", jax.random.PRNGKey(0)).terrain
+    groups = np.zeros(mujoco.mjNGROUP, np.uint8)
+    groups[scene.TERRAIN_GROUP] = 1
+    hit = np.zeros(1, np.int32)
+    for x in (-2.0, 1.0, 2.5, 4.0, 5.0):
+        dist = mujoco.mj_ray(
+            m, data, np.array([x, 0, 10.0]), np.array([0, 0, -1.0]), groups, 1, -1, hit
+        )
+        assert 10.0 - dist == pytest.approx(float(terrain.height(x)), abs=2e-3), x
+    assert float(terrain.height(5.0)) > 0.1  # the slope (from x = 2 m) is in the scene
