@@ -145,7 +145,7 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
         return run
 
     def const_law(p, s):
-        return jnp.full((2, 7), 0.05, s.dtype)
+        return jnp.full(s.shape[:-1] + (7,), 0.05, s.dtype)  # one row per (delayed) leg
 
     explicit = partial(muscle.muscle_step, implicit=False)
     variants = {

@@ -127,6 +127,43 @@ class Body:
         m = jnp.asarray(self.mass[1:], qpos.dtype)
         return (m[:, None] * w).sum(0) / m.sum()
 
+    def _jacobian_masks(self, point_bodies: tuple[int, ...]):
+        """Static masks for :meth:`point_jacobian` (cached per tuple of owner bodies)."""
+        cache = self.__dict__.setdefault("_jac_masks", {})
+        if point_bodies not in cache:
+            nv = self.mj_model.nv
+            hinge = np.zeros((len(point_bodies), nv))
+            slide = np.zeros((len(point_bodies), 2, nv))
+            dof_body = np.zeros(nv, np.int32)
+            for i, b in enumerate(point_bodies):
+                while b > 0:  # the chain from the point's body to the world
+                    if self.hinge_q[b] >= 0:
+                        hinge[i, self.hinge_q[b]] = self.hinge_sign[b]
+                        dof_body[self.hinge_q[b]] = b
+                    for k in range(2):
+                        if self.slide_q[b, k] >= 0:
+                            slide[i, k, self.slide_q[b, k]] = 1.0
+                    b = int(self.parent[b])
+            cache[point_bodies] = (hinge, slide, dof_body)
+        return cache[point_bodies]
+
+    def point_jacobian(self, origins, points, point_bodies) -> jax.Array:
+        """Jacobian d(points)/d(qpos) (P, 2, nv) of world points fixed in bodies, analytically.
+
+        ``origins`` are the body origins of :meth:`frames`, ``points`` (P, 2) world positions
+        and ``point_bodies`` a static tuple of the bodies that carry them.  A hinge of sign s
+        at the origin o of an ancestor body moves a point p by s (p_z - o_z, -(p_x - o_x))
+        per radian (rotation about +y); a slide moves it along its axis.  Joints sit at
+        their body origins (checked when the MJCF is loaded).
+        """
+        hinge, slide, dof_body = self._jacobian_masks(tuple(int(b) for b in point_bodies))
+        dt = points.dtype
+        r = points[:, None, :] - origins[dof_body][None, :, :]  # (P, nv, 2)
+        h = jnp.asarray(hinge, dt)
+        jx = h * r[..., 1]
+        jz = -h * r[..., 0]
+        return jnp.stack([jx, jz], 1) + jnp.asarray(slide, dt)
+
     def sites_and_velocities(self, qpos, qvel, ids):
         """Site positions and velocities (len(ids), 2) via forward-mode AD."""
         return jax.jvp(lambda q: self.sites(q, ids), (qpos,), (qvel,))

@@ -35,6 +35,22 @@ def delay_step(line: DelayLine, x: jax.Array) -> tuple[jax.Array, DelayLine]:
     return out, DelayLine(buf=buf, idx=(line.idx + 1) % n)
 
 
+def delay_taps(line: DelayLine, x: jax.Array, taps: tuple[int, ...]) -> tuple[jax.Array, DelayLine]:
+    """Push ``x`` and return the values pushed ``n`` steps ago for each n in ``taps``.
+
+    One ring buffer of length max(taps) serves several delays (one write, one read per tap);
+    ``taps`` are static whole numbers of steps in [1, n].  Returns (stacked (len(taps), ...),
+    new line).
+    """
+    n = line.buf.shape[0]
+    if not all(1 <= k <= n for k in taps):
+        raise ValueError(f"taps {taps} must lie in [1, {n}] steps (the line's length)")
+    idx = jnp.stack([(line.idx - k) % n for k in taps])
+    out = line.buf[idx]
+    buf = line.buf.at[line.idx].set(x)
+    return out, DelayLine(buf=buf, idx=(line.idx + 1) % n)
+
+
 def steps_for(delay_s: float, dt: float) -> int:
     """Number of steps of a delay, requiring it to be a whole number of steps."""
     n = round(delay_s / dt)

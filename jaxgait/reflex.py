@@ -36,7 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jaxgait.delay import DelayLine, delay_init, delay_step, steps_for
+from jaxgait.delay import DelayLine, delay_init, delay_taps, steps_for
 
 # muscle order (per leg) shared with jaxgait.muscle
 HFL, GLU, HAM, VAS, GAS, SOL, TA = range(7)
@@ -83,20 +83,21 @@ class ReflexState:
       stance: (2,) bool, leg in stance at the previous step.
       td_time: (2,) time of each leg's last touchdown [s].
       theta_to: (2,) trunk pitch at each leg's last take-off [rad].
-      lines: three delay lines over the (2, N_SENSORS) sensor array.
+      lines: one delay line over the (2, N_SENSORS) sensor array, as long as the longest
+        delay, read at each group's delay (:func:`jaxgait.delay.delay_taps`).
     """
 
     load: jax.Array
     stance: jax.Array
     td_time: jax.Array
     theta_to: jax.Array
-    lines: tuple[DelayLine, DelayLine, DelayLine]
+    lines: DelayLine
 
 
 def init_reflex(
     cfg: ReflexConfig, dt: float, sensors0: jax.Array, load0, stance0, theta0
 ) -> ReflexState:
-    lines = tuple(delay_init(steps_for(d, dt), sensors0) for d in cfg.delays)
+    lines = delay_init(max(steps_for(d, dt) for d in cfg.delays), sensors0)
     stance0 = jnp.asarray(stance0, bool)
     return ReflexState(
         load=jnp.asarray(load0, sensors0.dtype),
@@ -105,6 +106,11 @@ def init_reflex(
         theta_to=jnp.full((2,), theta0, sensors0.dtype),
         lines=lines,
     )
+
+
+def delay_taps_for(cfg: ReflexConfig, dt: float) -> tuple[int, ...]:
+    """The delay of each muscle group in whole steps of dt (static)."""
+    return tuple(steps_for(d, dt) for d in cfg.delays)
 
 
 def update_phase(cfg: ReflexConfig, st: ReflexState, grf_n, mg, t, theta, dt):
@@ -196,19 +202,23 @@ def fbl_stimulation(p: dict, s: jax.Array) -> jax.Array:
     return jnp.where(stance[:, None], stance_stim, swing_stim)
 
 
-def delayed_stimulation(p: dict, st: ReflexState, sensors: jax.Array, law=fbl_stimulation):
-    """Push the current sensors into the delay lines; stimulation from the delayed copies.
+def delayed_stimulation(
+    p: dict, st: ReflexState, sensors: jax.Array, law=fbl_stimulation, taps=None
+):
+    """Push the current sensors into the delay line; stimulation from the delayed copies.
 
-    Each muscle takes the law evaluated on its own delay group's sensors.
-    Returns (stim (2, 7), new delay lines).
+    Each muscle takes the law evaluated on its own delay group's sensors (5 / 10 / 20 ms by
+    default; ``taps`` overrides the delays in steps).  The law acts row by row (one row per
+    leg), so it is evaluated once on the stacked delayed copies of all groups.
+    Returns (stim (2, 7), new delay line).
     """
-    outs, lines = [], []
-    for line in st.lines:
-        out, nl = delay_step(line, sensors)
-        outs.append(law(p, out))
-        lines.append(nl)
-    stim = jnp.stack(outs, 0)  # (3, 2, 7)
+    if taps is None:  # the default delays, scaled to the line (its length is the longest)
+        n, ds = st.lines.buf.shape[0], ReflexConfig().delays
+        taps = tuple(round(n * d / max(ds)) for d in ds)
+    outs, lines = delay_taps(st.lines, sensors, taps)  # (3, 2, S)
+    g, legs, ns = outs.shape
+    stim = law(p, outs.reshape(g * legs, ns)).reshape(g, legs, -1)  # (3, 2, 7)
     stim = jnp.take_along_axis(
         stim, jnp.asarray(MUSCLE_DELAY_GROUP)[None, None, :].repeat(2, 1), axis=0
     )[0]
-    return stim, tuple(lines)
+    return stim, lines

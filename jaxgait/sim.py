@@ -2,13 +2,15 @@
 
 ``step(model, params, env, state) -> state`` advances one physics step of ``model.dt``:
 
-1. planar kinematics of the contact points, ankles, hip, CoM and push point (one
-   linearisation gives positions, velocities and, transposed, J^T F);
-2. Geyer ground contact against ``env.terrain`` and the push of ``env.pushes``;
-3. muscle-tendon forces and moment arms from the joint angles, ligament soft limits;
-4. ground-load filter, phases, sensors -> neural delay lines -> stimulation law;
-5. muscle activation / CE-length integration and metabolic energy;
-6. MJX multibody step (constraint solver off) with all of the above as ``qfrc_applied``.
+1. planar kinematics of the contact points, ankles, hip, CoM and push point, with their
+   analytic Jacobians;
+2. muscle-tendon forces and moment arms from the joint angles, the push of ``env.pushes``;
+3. Geyer ground contact against ``env.terrain`` and the ligament soft limits as stiff rows;
+4. MJX multibody dynamics (mass matrix and bias forces; constraint solver off);
+5. the rows' damping resolved linearly-implicitly (:mod:`jaxgait.rows`);
+6. ground-load filter, phases, sensors -> neural delay lines -> stimulation law;
+7. semi-implicit Euler of the body;
+8. muscle activation / CE-length integration and metabolic energy.
 
 ``rollout`` scans the step in chunks inside a ``while_loop`` that stops once the rollout
 (or, under ``vmap``, every rollout of the batch) is done, logging a decimated
@@ -41,10 +43,12 @@ from jaxgait.contact import (
 )
 from jaxgait.envs import Env, push_force
 from jaxgait.joints import SoftLimits, q_to_phi
+from jaxgait.linalg import cho_solve, cholesky
 from jaxgait.params import FBL, ParamTable
 from jaxgait.reflex import (
     ReflexConfig,
     ReflexState,
+    delay_taps_for,
     delayed_stimulation,
     fbl_stimulation,
     init_reflex,
@@ -165,6 +169,27 @@ class Model:
                 cache[key] = mjx.make_data(self.mjx_model)
         return cache[key]
 
+    def mass_and_forces(self, qpos, qvel, qfrc_applied):
+        """Joint-space mass matrix M (nv, nv) and smooth force (nv,) from MJX.
+
+        MJX's kinematics, composite-rigid-body inertia and recursive Newton-Euler give M
+        and the bias (Coriolis, centrifugal, gravity) forces; the smooth force is
+        qfrc_applied + qfrc_passive - qfrc_bias, as in ``mjx.forward`` (whose own dense
+        factorisation and solve are left to :mod:`jaxgait.linalg`, which is much faster
+        under ``vmap`` on the CPU).  The MJCF's constraint solver is disabled.
+        """
+        from mujoco.mjx._src import passive, smooth
+
+        m = self.mjx_model
+        d = self._template.replace(qpos=qpos, qvel=qvel, qfrc_applied=qfrc_applied)
+        d = smooth.kinematics(m, d)
+        d = smooth.com_pos(m, d)
+        d = smooth.crb(m, d)
+        d = smooth.com_vel(m, d)
+        d = passive.passive(m, d)
+        d = smooth.rne(m, d)
+        return d._impl.M, qfrc_applied + d.qfrc_passive - d.qfrc_bias
+
     @property
     def mass(self) -> float:
         return self.body.total_mass
@@ -178,18 +203,47 @@ class Model:
         )
 
     # ------------------------------------------------------------- kinematics
-    def points(self, qpos, push_h):
-        """(9, 2): heel_r, ball_r, heel_l, ball_l, ankle_r, ankle_l, hip, CoM, push point."""
+    def _point_parts(self, qpos, push_h):
         b = self.body
         sites, feet, trunk, _ = self._ids
         o, a = b.frames(qpos)
         sb = b.site_body[sites].astype(np.int32)
         cp = b._local_to_world(o[sb], a[sb], jnp.asarray(b.site_pos[sites], qpos.dtype))
-        m = jnp.asarray(b.mass[1:], qpos.dtype)
         w = b._local_to_world(o[1:], a[1:], jnp.asarray(b.ipos[1:], qpos.dtype))
-        com = (m[:, None] * w).sum(0) / m.sum()
         push = b._local_to_world(o[trunk], a[trunk], jnp.stack([jnp.zeros_like(push_h), push_h]))
+        return o, cp, w, push
+
+    def _com(self, w):
+        m = jnp.asarray(self.body.mass[1:], w.dtype)
+        return (m[:, None] * w).sum(0) / m.sum()
+
+    def points(self, qpos, push_h):
+        """(9, 2): heel_r, ball_r, heel_l, ball_l, ankle_r, ankle_l, hip, CoM, push point."""
+        _, feet, trunk, _ = self._ids
+        o, cp, w, push = self._point_parts(qpos, push_h)
+        com = self._com(w)
         return jnp.concatenate([cp, o[feet], o[trunk][None], com[None], push[None]], 0)
+
+    def points_jacobian(self, qpos, push_h):
+        """:meth:`points` (9, 2) and their Jacobian d points / d qpos (9, 2, nv), analytic."""
+        b = self.body
+        sites, feet, trunk, _ = self._ids
+        o, cp, w, push = self._point_parts(qpos, push_h)
+        nb = len(b.parent)
+        owners = (
+            tuple(int(i) for i in b.site_body[sites])
+            + tuple(int(i) for i in feet)
+            + (trunk,)
+            + tuple(range(1, nb))
+            + (trunk,)
+        )
+        allp = jnp.concatenate([cp, o[feet], o[trunk][None], w, push[None]], 0)
+        jall = b.point_jacobian(o, allp, owners)
+        m = jnp.asarray(b.mass[1:] / b.mass[1:].sum(), qpos.dtype)
+        jcom = jnp.einsum("b,bkn->kn", m, jall[7 : 7 + nb - 1])
+        pts = jnp.concatenate([cp, o[feet], o[trunk][None], self._com(w)[None], push[None]], 0)
+        jac = jnp.concatenate([jall[:7], jcom[None], jall[-1:]], 0)
+        return pts, jac
 
 
 def make_model(name: str = "fbl", timestep: float | None = None) -> Model:
@@ -285,14 +339,16 @@ def initial_state(model: Model, params, env: Env, cfg: SimConfig) -> SimState:
 
 # ------------------------------------------------------------------------- step
 def _record_touchdowns(ev: Events, td, t, ankle_x) -> Events:
+    """Append this step's touchdowns (at most one per leg) to the event buffer, in place."""
     for leg in (0, 1):
         i = jnp.minimum(ev.n, ev.t.shape[0] - 1)
         write = td[leg] & (ev.n < ev.t.shape[0])
+        put = lambda buf, v, i=i, write=write: buf.at[i].set(jnp.where(write, v, buf[i]))
         ev = Events(
-            t=jnp.where(write, ev.t.at[i].set(t), ev.t),
-            leg=jnp.where(write, ev.leg.at[i].set(leg), ev.leg),
-            x_td=jnp.where(write, ev.x_td.at[i].set(ankle_x[leg]), ev.x_td),
-            x_other=jnp.where(write, ev.x_other.at[i].set(ankle_x[1 - leg]), ev.x_other),
+            t=put(ev.t, t),
+            leg=put(ev.leg, jnp.asarray(leg, ev.leg.dtype)),
+            x_td=put(ev.x_td, ankle_x[leg]),
+            x_other=put(ev.x_other, ankle_x[1 - leg]),
             n=ev.n + td[leg].astype(jnp.int32),
         )
     return ev
@@ -316,9 +372,6 @@ def _limit_rows(lim: SoftLimits, phi, dphi):
 
 def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimState:
     """Advance the whole body + controller by one physics step (pure)."""
-    from mujoco import mjx
-    from mujoco.mjx._src.smooth import solve_m
-
     dt = model.dt
     dtype = s.qpos.dtype
     nv = s.qvel.shape[0]
@@ -328,11 +381,10 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
     legq_flat = legq.reshape(-1)
     legq = jnp.asarray(legq)
 
-    # 1. kinematics: positions, velocities and Jacobians from one linearisation
+    # 1. planar kinematics: positions and analytic Jacobians of the points
     push_fx, push_fz, push_h = push_force(env.pushes, s.t)
-    pts, lin = jax.linearize(lambda q: model.points(q, push_h), s.qpos)
-    vel = lin(s.qvel)
-    jac = jax.vmap(lin, out_axes=-1)(jnp.eye(nv, dtype=dtype))  # (9, 2, nv)
+    pts, jac = model.points_jacobian(s.qpos, push_h)
+    vel = jac @ s.qvel
 
     # 2. muscles (forces from the current state) and the explicit generalised forces
     q_leg = s.qpos[legq]
@@ -343,12 +395,8 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
     tau_q = -mus.joint_torques(table, phi, f_mtu)  # about q (Winter convention)
     qfrc = jnp.zeros(nv, dtype).at[legq].add(tau_q)
     qfrc = qfrc + jac[8].T @ jnp.stack([push_fx, push_fz])
-    d = model._template.replace(qpos=s.qpos, qvel=s.qvel, qfrc_applied=qfrc)
-    d = mjx.forward(model.mjx_model, d)
-    qacc0 = d.qacc
-    minv = solve_m(model.mjx_model, d, jnp.eye(nv, dtype=dtype))
 
-    # 3. stiff spring-dampers (ground contact, soft limits) resolved linearly-implicitly
+    # 3. stiff spring-dampers (ground contact, soft limits) as rows
     crow = contact_rows(model.contact, env.terrain, s.contact, pts[:4], vel[:4])
     a_lim, c_lim = _limit_rows(model.limits, phi, dphi)
     a_lim, c_lim = a_lim.reshape(-1), c_lim.reshape(-1)
@@ -358,16 +406,26 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
     J = jnp.concatenate([j_n, j_t, j_l], 0)
     a = jnp.concatenate([crow.a_n, crow.a_t, a_lim])
     c = jnp.concatenate([crow.c_n, crow.c_t, c_lim])
-    y, _ = implicit_row_velocities(J, a, c, s.qvel, qacc0, minv, dt)
+
+    # 4. MJX multibody dynamics: mass matrix M and bias forces (constraint solver off);
+    # one Cholesky of M gives both the smooth acceleration and M^-1 J^T of the rows
+    M, qfrc_smooth = model.mass_and_forces(s.qpos, s.qvel, qfrc)
+    sol = cho_solve(cholesky(M), jnp.concatenate([qfrc_smooth[:, None], J.T], 1))
+    qacc0, minv_jt = sol[:, 0], sol[:, 1:]
+
+    # 5. implicit rows, then the forces each law allows
+    y, _ = implicit_row_velocities(J, a, c, s.qvel, qacc0, minv_jt, dt)
     f_c, cstate, _ = contact_finalize(model.contact, crow, s.contact, pts[:4], y[:4], y[4:8])
     f_lim = a_lim - c_lim * y[8:]
     f_lim = jnp.where(a_lim > 0, jnp.maximum(f_lim, 0.0), jnp.minimum(f_lim, 0.0))
-    qfrc_rows = jnp.einsum("pkn,pk->n", jac[:4], f_c) + j_l.T @ f_lim
-    qacc = qacc0 + minv @ qfrc_rows
+    f_rows = jnp.concatenate(
+        [(f_c * crow.normal).sum(-1), (f_c * crow.tangent).sum(-1), f_lim]
+    )  # row components of the final forces (normal and tangent are orthonormal)
+    qacc = qacc0 + minv_jt @ f_rows
     grf = f_c.reshape(2, 2, 2).sum(1)  # per leg (x, z)
     mg = model.mass * 9.81
 
-    # 4. controller: ground-load filter, phases, sensors -> delay lines -> stimulation
+    # 6. controller: ground-load filter, phases, sensors -> delay lines -> stimulation
     rstate, stance, td, ds = update_phase(model.reflex, s.reflex, grf[:, 1], mg, s.t, s.qpos[2], dt)
     sensors = sensor_array(
         f_mtu / jnp.maximum(jnp.asarray(table.f_max, dtype), 1e-9),
@@ -382,14 +440,15 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
         rstate.theta_to,
         (pts[7, 0] - pts[[1, 3], 0]) / model.foot_length,
     )
-    stim, lines = delayed_stimulation(p, rstate, sensors, model.law)
+    taps = delay_taps_for(model.reflex, dt)
+    stim, lines = delayed_stimulation(p, rstate, sensors, model.law, taps)
     rstate = rstate.replace(lines=lines)
 
-    # 5. semi-implicit Euler (as MuJoCo's Euler integrator; all joints are hinge/slide)
+    # 7. semi-implicit Euler (as MuJoCo's Euler integrator; all joints are hinge/slide)
     qvel = s.qvel + dt * qacc
     qpos = s.qpos + dt * qvel
 
-    # 6. muscle state over the same step, against the MTU lengths at its end (the joints
+    # 8. muscle state over the same step, against the MTU lengths at its end (the joints
     # have moved with the tendon forces of its start), and metabolic energy
     l_mtu_end = mus.mtu_length(table, q_to_phi(qpos[legq]))
     mstate, info = mus.muscle_step(table, s.muscle, stim, l_mtu_end, dt, cfg.muscle_substeps)
@@ -402,7 +461,7 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
     lean_sum = s.lean_sum + s.qpos[2] * dt
     events = _record_touchdowns(s.events, td & ~s.done, s.t, pts[4:6, 0])
 
-    # 7. fall and stopping criteria; the summary freezes at the first "done"
+    # 9. fall and stopping criteria; the summary freezes at the first "done"
     hip = pts[6]
     hip_clear = hip[1] - env.terrain.height(hip[0])
     bad = ~jnp.all(jnp.isfinite(qpos)) | ~jnp.all(jnp.isfinite(qvel))

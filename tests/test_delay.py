@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from jaxgait import reflex
-from jaxgait.delay import delay_init, delay_step, steps_for
+from jaxgait.delay import delay_init, delay_step, delay_taps, steps_for
 from jaxgait.params import FBL
 
 
@@ -20,6 +20,24 @@ def test_delay_line_impulse(delay):
         outs.append(float(out))
     assert np.nonzero(outs)[0].tolist() == [7 + n]
     assert n * dt == pytest.approx(delay)
+
+
+def test_tapped_line_impulse_arrives_at_each_tap():
+    taps = (10, 20, 40)  # 5 / 10 / 20 ms at 0.5 ms
+    line = delay_init(max(taps), jnp.zeros(2))
+    outs = []
+    for k in range(120):
+        x = jnp.asarray([1.0, 2.0]) if k == 11 else jnp.zeros(2)
+        out, line = delay_taps(line, x, taps)
+        outs.append(np.asarray(out))
+    outs = np.array(outs)  # (time, tap, 2)
+    for j, n in enumerate(taps):
+        assert np.nonzero(outs[:, j, 0])[0].tolist() == [11 + n]
+        assert outs[11 + n, j].tolist() == [1.0, 2.0]
+    with pytest.raises(ValueError, match="taps"):
+        delay_taps(line, jnp.zeros(2), (0, 40))
+    with pytest.raises(ValueError, match="taps"):
+        delay_taps(line, jnp.zeros(2), (41,))
 
 
 def test_delay_must_be_whole_steps():

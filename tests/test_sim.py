@@ -1,5 +1,6 @@
 """The whole-body step and rollout: energy on passive motion, MuJoCo agreement, jit hygiene."""
 
+import copy
 import dataclasses
 import math
 
@@ -27,7 +28,7 @@ def _passive(model, contact=None, limits=None):
 
 def _energy(model, qpos, qvel, contact_k, limit_k):
     """Kinetic + gravitational (MuJoCo C) + contact and soft-limit spring energy [J]."""
-    m = model.body.mj_model
+    m = copy.copy(model.body.mj_model)  # never change the shared model (MJX rejects the flag)
     m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     d = mujoco.MjData(m)
     d.qpos[:] = qpos

@@ -1,0 +1,74 @@
+"""Unrolled small SPD solves and the implicit row system against dense NumPy solves."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from jaxgait.linalg import cho_solve, cholesky, spd_solve
+from jaxgait.rows import implicit_row_velocities
+
+
+@pytest.fixture(autouse=True)
+def _x64():
+    with jax.enable_x64(True):
+        yield
+
+
+def _spd(rng, n, cond=1e3):
+    q, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    return (q * np.geomspace(1.0, cond, n)) @ q.T
+
+
+@settings(max_examples=15, deadline=None)
+@given(n=st.integers(1, 9), seed=st.integers(0, 2**31 - 1), k=st.integers(1, 4))
+def test_cholesky_and_solve_match_numpy(n, seed, k):
+    rng = np.random.default_rng(seed)
+    a = _spd(rng, n)
+    b = rng.normal(size=(n, k))
+    L = np.asarray(cholesky(jnp.asarray(a)))
+    np.testing.assert_allclose(L, np.linalg.cholesky(a), rtol=1e-9, atol=1e-9)
+    assert np.all(np.triu(L, 1) == 0)
+    np.testing.assert_allclose(
+        np.asarray(cho_solve(jnp.asarray(L), jnp.asarray(b))),
+        np.linalg.solve(a, b),
+        rtol=1e-8,
+        atol=1e-8,
+    )
+    np.testing.assert_allclose(
+        np.asarray(spd_solve(jnp.asarray(a), jnp.asarray(b[:, 0]))),
+        np.linalg.solve(a, b[:, 0]),
+        rtol=1e-8,
+        atol=1e-8,
+    )
+
+
+def test_solve_under_vmap_and_bad_shapes():
+    rng = np.random.default_rng(0)
+    a = np.stack([_spd(rng, 5) for _ in range(7)])
+    b = rng.normal(size=(7, 5))
+    x = jax.vmap(spd_solve)(jnp.asarray(a), jnp.asarray(b))
+    np.testing.assert_allclose(np.asarray(x), np.linalg.solve(a, b[..., None])[..., 0], rtol=1e-8)
+    with pytest.raises(ValueError, match="square"):
+        cholesky(jnp.zeros((3, 4)))
+    with pytest.raises(ValueError, match="rows"):
+        cho_solve(jnp.eye(3), jnp.zeros(4))
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), zeros=st.integers(0, 14))
+def test_implicit_rows_match_the_dense_backward_euler_system(seed, zeros):
+    """y solves (I + dt A C) y = J v + dt J qacc0 + dt A a, also with undamped rows (c = 0)."""
+    rng = np.random.default_rng(seed)
+    nv, R, dt = 9, 14, 5e-4
+    minv = np.linalg.inv(_spd(rng, nv, cond=1e2) * 5.0)
+    J = rng.normal(size=(R, nv))
+    c = rng.uniform(0, 3e4, size=R)
+    c[rng.permutation(R)[:zeros]] = 0.0
+    a, v, qacc0 = rng.normal(size=R) * 100, rng.normal(size=nv), rng.normal(size=nv)
+    A = J @ minv @ J.T
+    want = np.linalg.solve(np.eye(R) + dt * A * c[None, :], J @ v + dt * J @ qacc0 + dt * A @ a)
+    y, _ = implicit_row_velocities(*map(jnp.asarray, (J, a, c, v, qacc0, minv @ J.T)), dt)
+    np.testing.assert_allclose(np.asarray(y), want, rtol=1e-7, atol=1e-9)
