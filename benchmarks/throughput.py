@@ -78,12 +78,13 @@ def run_case(kind: str, batch: int, steps: int, repeats: int) -> dict:
     params = jnp.broadcast_to(jnp.asarray(model.table.init, jnp.float32), (batch, model.table.size))
     s0 = jax.vmap(lambda p, e: sim.initial_state(model, p, e, cfg))(params, env)
     if kind == "full":
-
-        def run(s):
+        # parameters and environments are arguments, not constants folded into the program
+        def run(a):
+            s, p, e = a
             f = jax.vmap(lambda p, e, s: sim.step(model, cfg, p, e, s))
-            return jax.lax.scan(lambda s, _: (f(params, env, s), None), s, None, length=steps)[0]
+            return jax.lax.scan(lambda s, _: (f(p, e, s), None), s, None, length=steps)[0]
 
-        arg = s0
+        arg = (s0, params, env)
     elif kind == "mjx":
         from mujoco import mjx
 
@@ -138,9 +139,10 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
     s0 = jax.vmap(lambda p, e: sim.initial_state(model, p, e, cfg))(params, env)
 
     def scan_step(m):
-        def run(s):
+        def run(a):
+            s, p, e = a
             f = jax.vmap(lambda p, e, s: sim.step(m, cfg, p, e, s))
-            return jax.lax.scan(lambda s, _: (f(params, env, s), None), s, None, length=steps)[0]
+            return jax.lax.scan(lambda s, _: (f(p, e, s), None), s, None, length=steps)[0]
 
         return run
 
@@ -149,8 +151,11 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
 
     explicit = partial(muscle.muscle_step, implicit=False)
     variants = {
-        "full step": (scan_step(model), s0),
-        "no reflex law (constant stim)": (scan_step(dataclasses.replace(model, law=const_law)), s0),
+        "full step": (scan_step(model), (s0, params, env)),
+        "no reflex law (constant stim)": (
+            scan_step(dataclasses.replace(model, law=const_law)),
+            (s0, params, env),
+        ),
     }
     d0 = jax.vmap(lambda q, v: model._template.replace(qpos=q, qvel=v))(s0.qpos, s0.qvel)
 

@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxgait.terrain import Terrain
+from jaxgait.terrain import Terrain, normal_of_slope
 
 
 @dataclass(frozen=True)
@@ -82,9 +82,10 @@ def contact_rows(
 ) -> ContactRows:
     """Spring and damping terms of every contact row at positions/velocities (P, 2)."""
     x, z = pos[..., 0], pos[..., 1]
-    n = terrain.normal(x)
+    h, slope = terrain.height_slope(x)
+    n = normal_of_slope(slope)
     t = jnp.stack([n[..., 1], -n[..., 0]], -1)  # forward tangent
-    depth = (terrain.height(x) - z) * n[..., 1]  # distance below the ground line along n
+    depth = (h - z) * n[..., 1]  # distance below the ground line along n
     in_contact = depth > 0.0
     d = jnp.maximum(depth, 0.0)
     a_n = cp.k_n * d

@@ -46,24 +46,31 @@ class Terrain:
         i = jnp.searchsorted(self.xs, x, side="right") - 1
         return jnp.clip(i, 0, k - 2)
 
-    def slope(self, x):
-        """dh/dx at x (rise/run) of the segment containing x."""
+    def height_slope(self, x):
+        """Ground height h(x) [m] and slope dh/dx [-] from one segment search."""
         i = self.segment(x)
         x0, x1 = self.xs[i], self.xs[i + 1]
         z0, z1 = self.zs[i], self.zs[i + 1]
-        return (z1 - z0) / (x1 - x0)
+        s = (z1 - z0) / (x1 - x0)
+        return z0 + s * (x - x0), s
+
+    def slope(self, x):
+        """dh/dx at x (rise/run) of the segment containing x."""
+        return self.height_slope(x)[1]
 
     def height(self, x):
         """Ground height h(x) [m]."""
-        i = self.segment(x)
-        x0, z0 = self.xs[i], self.zs[i]
-        return z0 + self.slope(x) * (x - x0)
+        return self.height_slope(x)[0]
 
     def normal(self, x):
         """Unit upward ground normal (n_x, n_z) at x."""
-        s = self.slope(x)
-        inv = 1.0 / jnp.sqrt(1.0 + s * s)
-        return jnp.stack([-s * inv, inv], -1)
+        return normal_of_slope(self.slope(x))
+
+
+def normal_of_slope(s):
+    """Unit upward normal (n_x, n_z) of ground with slope s = dh/dx."""
+    inv = 1.0 / jnp.sqrt(1.0 + s * s)
+    return jnp.stack([-s * inv, inv], -1)
 
 
 def flat(length: float = 1000.0, dtype=jnp.float32, n_knots: int | None = None) -> Terrain:
