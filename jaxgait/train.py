@@ -595,6 +595,30 @@ def plot_stage_progress(path: Path, rows: list[dict], criteria: Sequence[str]) -
     return path
 
 
+def perturbation_check(
+    evaluator: PopulationEvaluator, best, env_key, key, n: int = 8, rel: float = 1e-6
+) -> dict:
+    """How many of ``n`` copies of ``best``, each scaled by (1 + rel N(0, 1)), do not fall.
+
+    Run on the first evaluation environment.  A gait found by optimising one deterministic
+    rollout can owe its success to rounding: a fraction below 1 says it falls under changes
+    as small as float32 rounding (use worst-of-k or a perturbed environment to train).
+    """
+    noise = jax.random.normal(jax.random.fold_in(key, _EVAL_TAG + 1), (n, best.shape[0]))
+    params = best[None] * (1.0 + rel * noise.astype(best.dtype))
+    keys = jnp.repeat(env_key[None], n, axis=0)
+    fell, dist = np.zeros(n, bool), np.zeros(n)
+    for real, _, _, summary in evaluator.run(params, keys):
+        fell[real] = np.asarray(summary.fell)[: real.size]
+        dist[real] = np.asarray(summary.distance)[: real.size]
+    return {
+        "perturbed_relative": rel,
+        "perturbed_copies": n,
+        "perturbed_survival": float(1.0 - fell.mean()),
+        "perturbed_distance_min_m": float(dist.min()),
+    }
+
+
 def final_evaluation(
     exp: Experiment, evaluator: PopulationEvaluator, state: TrainState, out: Path, plots: bool
 ) -> tuple[dict, dict[str, Path]]:
@@ -627,6 +651,7 @@ def final_evaluation(
         value=json_safe(float(wv[0])),
         worst_of=k,
     )
+    report.update(perturbation_check(evaluator, state.best_params, keys[0], state.key))
     files = {"measures": out / "measures.json"}
     _atomic_write(
         files["measures"], json.dumps(json_safe(report), indent=2, allow_nan=False) + "\n"
@@ -772,6 +797,13 @@ def train(
             f"{exp.name}: done; best {best}; re-evaluated (no stage cap): {measures['score']}, "
             f"distance {d}, {epm}; results in {out}"
         )
+        surv = measures.get("perturbed_survival")
+        if surv is not None and surv < 1.0:
+            say(
+                f"warning: only {surv:.0%} of {measures['perturbed_copies']} copies of the best "
+                f"perturbed by {measures['perturbed_relative']:g} (relative) stay up; this gait "
+                "depends on rounding (train with --worst-of or a perturbed environment)"
+            )
     return TrainResult(
         config=exp,
         out_dir=out,

@@ -74,6 +74,9 @@ def test_every_registry_experiment_runs(name, tmp_path):
     assert doc["experiment"] == name
     meas = json.loads((out / "measures.json").read_text())
     assert meas["distance_m"] > 0.5 and meas["worst_of"] == exp.worst_of_k
+    assert 0.0 <= meas["perturbed_survival"] <= 1.0 and meas["perturbed_copies"] == 8
+    warned = any("depends on rounding" in s for s in lines)
+    assert warned == (meas["perturbed_survival"] < 1.0)
     assert load_config(out / "config.json") == exp
     assert (out / "history.csv").read_text().count("\n") == 3
     progress = [s for s in lines if " it " in s]
