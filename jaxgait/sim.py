@@ -176,7 +176,9 @@ class Model:
         and the bias (Coriolis, centrifugal, gravity) forces; the smooth force is
         qfrc_applied + qfrc_passive - qfrc_bias, as in ``mjx.forward`` (whose own dense
         factorisation and solve are left to :mod:`jaxgait.linalg`, which is much faster
-        under ``vmap`` on the CPU).  The MJCF's constraint solver is disabled.
+        under ``vmap`` on the CPU).  The MJCF's constraint solver is disabled.  These passes
+        are MJX's internal functions (``mujoco.mjx._src``); ``tests/test_linalg.py`` checks the
+        result against ``mjx.forward`` so that an MJX upgrade that changes them is caught.
         """
         from mujoco.mjx._src import passive, smooth
 

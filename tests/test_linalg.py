@@ -72,3 +72,17 @@ def test_implicit_rows_match_the_dense_backward_euler_system(seed, zeros):
     want = np.linalg.solve(np.eye(R) + dt * A * c[None, :], J @ v + dt * J @ qacc0 + dt * A @ a)
     y, _ = implicit_row_velocities(*map(jnp.asarray, (J, a, c, v, qacc0, minv @ J.T)), dt)
     np.testing.assert_allclose(np.asarray(y), want, rtol=1e-7, atol=1e-9)
+
+
+def test_mass_and_forces_give_the_mjx_forward_acceleration(fbl_model):
+    """M^-1 (qfrc_applied + passive - bias) from the step's MJX passes = mjx.forward's qacc."""
+    from mujoco import mjx
+
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        q = jnp.asarray(rng.normal(size=9) * 0.5).at[1].set(1.0)
+        v, f = jnp.asarray(rng.normal(size=9)), jnp.asarray(rng.normal(size=9) * 50)
+        M, smooth = fbl_model.mass_and_forces(q, v, f)
+        d = fbl_model._template.replace(qpos=q, qvel=v, qfrc_applied=f)
+        want = mjx.forward(fbl_model.mjx_model, d).qacc
+        np.testing.assert_allclose(np.asarray(spd_solve(M, smooth)), np.asarray(want), atol=1e-9)
