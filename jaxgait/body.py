@@ -4,9 +4,10 @@ The MJCF file is the one source of geometry and inertia.  MJX integrates the mul
 dynamics; this module only reads the model's kinematic tree once (NumPy, static) and gives
 cheap, differentiable planar forward kinematics for the quantities the controller and the
 contact model need at every step: contact-point positions/velocities, the centre of mass
-and joint angles in the Geyer-Herr convention.  Velocities come from ``jax.jvp`` of the
-position map and generalised forces from ``jax.vjp`` (J^T F), so they are exact and
-consistent with one another.
+and joint angles in the Geyer-Herr convention.  :meth:`Body.point_jacobian` gives the
+Jacobian of points fixed in bodies analytically (the FBL step uses it for velocities and
+J^T F); :meth:`Body.sites_and_velocities` and :meth:`Body.site_forces_to_qfrc` get the same
+from ``jax.jvp`` / ``jax.vjp`` of the position map.
 
 Planar convention: the sagittal plane is MuJoCo's x-z plane, every hinge turns about +-y.
 A rotation by angle a about +y maps a local vector (x, z) to (x cos a + z sin a,

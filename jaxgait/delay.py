@@ -28,11 +28,9 @@ def delay_init(n_steps: int, value: jax.Array) -> DelayLine:
 
 
 def delay_step(line: DelayLine, x: jax.Array) -> tuple[jax.Array, DelayLine]:
-    """Push ``x`` and return the value pushed ``n`` steps ago."""
-    n = line.buf.shape[0]
-    out = line.buf[line.idx]
-    buf = line.buf.at[line.idx].set(x)
-    return out, DelayLine(buf=buf, idx=(line.idx + 1) % n)
+    """Push ``x`` and return the value pushed ``n`` steps ago (n = the line's length)."""
+    out, line = delay_taps(line, x, (line.buf.shape[0],))
+    return out[0], line
 
 
 def delay_taps(line: DelayLine, x: jax.Array, taps: tuple[int, ...]) -> tuple[jax.Array, DelayLine]:

@@ -356,7 +356,7 @@ def _record_touchdowns(ev: Events, td, t, ankle_x) -> Events:
     return ev
 
 
-def _limit_rows(lim: SoftLimits, phi, dphi):
+def _limit_rows(lim: SoftLimits, phi):
     """Soft limits (eq. 2.38) as rows in q space: torque a - c q_dot on each leg joint.
 
     q = offset - phi, so an upper-phi violation Delta pushes q up: a = k Delta, and the
@@ -368,7 +368,6 @@ def _limit_rows(lim: SoftLimits, phi, dphi):
     under = jnp.maximum(lo - phi, 0.0)
     a = lim.k * (over - under)
     c = lim.k * (over + under) / lim.omega_ref
-    del dphi
     return a, c
 
 
@@ -400,7 +399,7 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
 
     # 3. stiff spring-dampers (ground contact, soft limits) as rows
     crow = contact_rows(model.contact, env.terrain, s.contact, pts[:4], vel[:4])
-    a_lim, c_lim = _limit_rows(model.limits, phi, dphi)
+    a_lim, c_lim = _limit_rows(model.limits, phi)
     a_lim, c_lim = a_lim.reshape(-1), c_lim.reshape(-1)
     j_n = jnp.einsum("pk,pkn->pn", crow.normal, jac[:4])
     j_t = jnp.einsum("pk,pkn->pn", crow.tangent, jac[:4])

@@ -595,6 +595,12 @@ def plot_stage_progress(path: Path, rows: list[dict], criteria: Sequence[str]) -
     return path
 
 
+def perturbed_copies(best, key, n: int, rel: float):
+    """``n`` copies of the parameter vector ``best``, each scaled by (1 + rel N(0, 1))."""
+    noise = jax.random.normal(key, (n, best.shape[0]))
+    return best[None] * (1.0 + rel * noise.astype(best.dtype))
+
+
 def perturbation_check(
     evaluator: PopulationEvaluator, best, env_key, key, n: int = 8, rel: float = 1e-6
 ) -> dict:
@@ -605,8 +611,7 @@ def perturbation_check(
     (``perturbed_reference_fell`` false), a fraction below 1 says it falls under changes as
     small as float32 rounding (use worst-of-k or a perturbed environment to train).
     """
-    noise = jax.random.normal(jax.random.fold_in(key, _EVAL_TAG + 1), (n, best.shape[0]))
-    params = best[None] * (1.0 + rel * noise.astype(best.dtype))
+    params = perturbed_copies(best, jax.random.fold_in(key, _EVAL_TAG + 1), n, rel)
     keys = jnp.repeat(env_key[None], n, axis=0)
     fell, dist = np.zeros(n, bool), np.zeros(n)
     for real, _, _, summary in evaluator.run(params, keys):

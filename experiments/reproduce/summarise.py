@@ -39,12 +39,12 @@ def perturbation_survival(folder: Path, n: int = 16, rel: float = 1e-6, duration
     import jax.numpy as jnp
 
     from jaxgait import envs, sim
+    from jaxgait.train import perturbed_copies
 
     doc = json.loads((folder / "best.json").read_text())
     model = sim.make_model(doc.get("model", "fbl"))
     vec = jnp.asarray([doc["params"][k] for k in model.table.names], jnp.float32)
-    noise = jax.random.normal(jax.random.PRNGKey(1), (n, vec.size))
-    pert = vec * (1.0 + rel * noise)
+    pert = perturbed_copies(vec, jax.random.PRNGKey(1), n, rel)
     env = envs.make_env_batch("flat", jax.random.split(jax.random.PRNGKey(0), n))
     roll = sim.make_rollout(model, sim.SimConfig(duration=duration), batched=True)
     summ = roll(pert, env)[2]
