@@ -233,6 +233,9 @@ def main(argv=None):
     ap.add_argument("--profile", type=int, metavar="BATCH")
     ap.add_argument("--breakdown", type=int, metavar="BATCH", help="time per part of the step")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument(
+        "--timeout", type=float, default=900.0, help="seconds allowed per case (default 900)"
+    )
     a = ap.parse_args(argv)
     if a.one:
         print(json.dumps(run_case(a.one[0], int(a.one[1]), a.steps, a.repeats)))
@@ -246,21 +249,14 @@ def main(argv=None):
     rows = []
     for b in a.batches:
         for k in a.kinds:
-            out = subprocess.run(
-                [
-                    sys.executable,
-                    __file__,
-                    "--one",
-                    k,
-                    str(b),
-                    "--steps",
-                    str(a.steps),
-                    "--repeats",
-                    str(a.repeats),
-                ],
-                capture_output=True,
-                text=True,
-            )
+            cmd = [sys.executable, __file__, "--one", k, str(b)]
+            cmd += ["--steps", str(a.steps), "--repeats", str(a.repeats)]
+            try:
+                out = subprocess.run(cmd, capture_output=True, text=True, timeout=a.timeout)
+            except subprocess.TimeoutExpired:
+                rows.append({"kind": k, "batch": b, "error": [f"no result in {a.timeout} s"]})
+                print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+                continue
             line = [x for x in out.stdout.splitlines() if x.startswith("{")]
             if out.returncode != 0 or not line:
                 rows.append({"kind": k, "batch": b, "error": out.stderr.strip().splitlines()[-1:]})

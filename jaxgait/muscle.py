@@ -38,6 +38,7 @@ as in GH2010 (it is not a pennation angle).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -564,6 +565,18 @@ def _f_v_inverse_of_v_from_fv(v_n, N, K):
     return jnp.where(v_n <= 1.0, f_v(v_n, N, K), N + 100.0 * (v_n - 1.0))
 
 
+def _tiled(table: MuscleTable, reps: int) -> MuscleTable:
+    """The table repeated ``reps`` times (muscle i of copy k at index k M + i)."""
+    per = {
+        k: np.tile(getattr(table, k), reps) for k in ("f_max", "v_max", "l_opt", "l_slack", "type1")
+    }
+    arms = {
+        k: np.tile(getattr(table, k), (reps, 1))
+        for k in ("r0", "phi_max", "phi_ref", "rho", "sign", "arm")
+    }
+    return dataclasses.replace(table, names=table.names * reps, **per, **arms)
+
+
 def muscle_step(
     table: MuscleTable,
     state: MuscleState,
@@ -625,6 +638,22 @@ def muscle_step(
     stim = jnp.clip(jnp.asarray(stim, dtype=fdt), ACT_MIN, 1.0)
     shape = jnp.broadcast_shapes(act0.shape, l_ce0.shape, l_mtu.shape, stim.shape)
     act0, l_ce0, l_mtu, stim = (jnp.broadcast_to(x, shape) for x in (act0, l_ce0, l_mtu, stim))
+    if len(shape) > 1:
+        # (..., M) -> one flat axis against a tiled table: XLA's CPU loops vectorise the
+        # minor axis, and M = 7 muscles fill less than half of a vector register.
+        flat = _tiled(table, int(np.prod(shape[:-1])))
+        new, info = muscle_step(
+            flat,
+            MuscleState(act=act0.reshape(-1), l_ce=l_ce0.reshape(-1)),
+            stim.reshape(-1),
+            l_mtu.reshape(-1),
+            dt,
+            substeps,
+            implicit,
+            newton_iters,
+        )
+        back = lambda x: x.reshape(shape)
+        return jax.tree.map(back, new), {k: back(v) for k, v in info.items()}
     h = jnp.asarray(dt, dtype=fdt) / substeps
     decay = jnp.exp(-h / table.tau_act)
     vscale = _p(table.v_max * table.l_opt, fdt)  # [m/s] per unit v_n
@@ -641,8 +670,8 @@ def muscle_step(
     def f_v_inv(v_n):
         return _f_v_inverse_of_v_from_fv(v_n, N, K)
 
-    def solve(act, l_ce, l_mtu):
-        """Backward-Euler v_n of one sub-step (inputs carry no gradient)."""
+    def solve(act, l_ce, l_mtu, c):
+        """Backward-Euler v_n of one sub-step and the last Newton slope dg/dv."""
         fb0, dfb0 = balance_jvp(act, l_ce, l_mtu)
         v_e = v_from_fv(fb0, N, K)  # explicit step; the root lies in [0, v_e]
         lo, hi = jnp.minimum(v_e, 0.0), jnp.maximum(v_e, 0.0)
@@ -662,20 +691,26 @@ def muscle_step(
             ok = (dg < 0.0) & (v_new >= lo) & (v_new <= hi)
             return jnp.where(ok, v_new, 0.5 * (lo + hi)), lo, hi, dg
 
-        v, _, _, dg = jax.lax.fori_loop(0, newton_iters, newton, (v, lo, hi, dg))
+        v, _, _, dg = jax.lax.fori_loop(0, newton_iters, newton, (v, lo, hi, dg), unroll=True)
         return v, dg
+
+    @jax.custom_jvp
+    def root(act, l_ce, l_mtu, c):
+        return solve(act, l_ce, l_mtu, c)[0]
+
+    @root.defjvp
+    def _root_jvp(primals, tangents):
+        # implicit-function theorem on g(theta, v) = balance(l_ce + c v) - f_v^-1(v) = 0:
+        # dv = -dg_theta / dg_v (evaluated only when derivatives are asked for)
+        v, dg = solve(*primals)
+        _, dg_theta = jax.jvp(lambda a, lc, lm, cc: balance(a, lc + cc * v, lm), primals, tangents)
+        return v, jnp.where(dg < 0.0, -dg_theta / jnp.where(dg < 0.0, dg, -1.0), 0.0)
 
     def advance(act, l_ce):
         if not implicit:
             v = v_from_fv(balance(act, l_ce, l_mtu), N, K)
         else:
-            sg = jax.lax.stop_gradient
-            v, dg = solve(sg(act), sg(l_ce), sg(l_mtu))
-            # Derivatives of the root by the implicit-function theorem, dv = -dg_theta / dg_v:
-            # a Newton correction whose value is removed and whose derivative is kept.
-            g = balance(act, l_ce + c * v, l_mtu) - f_v_inv(v)
-            corr = jnp.where(dg < 0.0, -g / jnp.where(dg < 0.0, dg, -1.0), 0.0)
-            v = v + (corr - sg(corr))
+            v = root(act, l_ce, l_mtu, c)
         l_new = jnp.maximum(l_ce + c * v, l_min)
         return stim + (act - stim) * decay, l_new, v
 

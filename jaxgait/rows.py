@@ -5,21 +5,19 @@ Ground contact (Geyer's damping grows as k d / v_max) and the ligament soft limi
 (nv,), a spring force a_r and a damping coefficient c_r >= 0, so its force is
 f_r = a_r - c_r y_r with y_r = J_r v the row velocity.  With semi-implicit Euler,
 
-    v+ = v + dt (qacc0 + M^-1 J^T f),          f = a - C J v+,
+    M (v+ - v) = dt (f + J^T f_rows),          f_rows = a - C J v+,
 
-where qacc0 is the acceleration from every other force.  Taking the damping at the new
-velocity (backward Euler in the damping only) gives the R x R linear system
+where f is every other generalised force (applied, passive, minus bias).  Taking the damping
+at the new velocity (backward Euler in the damping only) gives the nv x nv system
 
-    (I + dt A C) y = J v + dt J qacc0 + dt A a,     A = J M^-1 J^T,
+    (M + dt J^T C J) v+ = M v + dt (f + J^T a),
 
-whose solution y is unconditionally stable for any c_r >= 0.  With S = C^1/2 and w = S y
-it is solved in the symmetric positive-definite form
-
-    (I + dt S A S) w = S r,        y = r - dt A S w,        r = J v + dt J qacc0 + dt A a,
-
-by an unrolled Cholesky factorisation (:mod:`jaxgait.linalg`; no pivoting needed, the
-matrix is >= I).  Forces are then clipped by each law's own rules (e.g. the normal force
-stays >= 0), which can only remove force.
+symmetric positive definite (M is, J^T C J is semi-definite) and so unconditionally stable
+for any c_r >= 0.  It is the same step as the R x R "dual" system
+(I + dt A C) y = J v + dt J M^-1 f + dt A a with A = J M^-1 J^T, but of size nv = 9
+instead of R = 14 rows, and needs no M^-1 J^T.  It is solved by an unrolled Cholesky
+factorisation (:mod:`jaxgait.linalg`).  The caller then clips the row forces by each law's
+own rules (e.g. the normal force stays >= 0), which can only remove force, and applies them.
 """
 
 from __future__ import annotations
@@ -29,26 +27,22 @@ import jax.numpy as jnp
 from jaxgait.linalg import spd_solve
 
 
-def implicit_row_velocities(J, a, c, qvel, qacc0, minv_jt, dt):
-    """Row velocities y (R,) of the linearly-implicit step.
+def implicit_row_velocities(J, a, c, M, qvel, qfrc, dt):
+    """Row velocities y = J v+ (R,) of the linearly-implicit step.
 
     Args:
       J: (R, nv) row Jacobians.  a, c: (R,) spring forces [N] and damping coefficients
         [N s/m] (c >= 0).
-      qvel, qacc0: (nv,) velocity and acceleration from all other forces.
-      minv_jt: (nv, R) M^-1 J^T (the rows' Jacobians through the inverse mass matrix).
+      M: (nv, nv) joint-space mass matrix.
+      qvel: (nv,) velocity at the start of the step; qfrc: (nv,) every other generalised force
+        (applied + passive - bias).
       dt: time step [s].
-
-    Returns (y, minv_jt).
     """
-    A = J @ minv_jt  # (R, R), symmetric positive semi-definite
-    R = J.shape[0]
-    on = c > 0  # sqrt with a finite derivative (rows with c = 0 carry no damping)
-    s = jnp.where(on, jnp.sqrt(jnp.where(on, c, 1.0)), 0.0)
-    r = J @ (qvel + dt * qacc0) + dt * (A @ a)
-    K = jnp.eye(R, dtype=J.dtype) + dt * (s[:, None] * A * s[None, :])
-    w = spd_solve(K, s * r)
-    return r - dt * (A @ (s * w)), minv_jt
+    # sums, not dot products: XLA's CPU dots of these tiny shapes may round differently
+    # with the thread count of the device, and results must not depend on the sharding
+    K = M + dt * jnp.sum(J[:, :, None] * (c[:, None] * J)[:, None, :], axis=0)
+    rhs = jnp.sum(M * qvel, axis=1) + dt * (qfrc + jnp.sum(J * a[:, None], axis=0))
+    return jnp.sum(J * spd_solve(K, rhs), axis=1)
 
 
 __all__ = ["implicit_row_velocities"]

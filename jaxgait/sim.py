@@ -43,7 +43,7 @@ from jaxgait.contact import (
 )
 from jaxgait.envs import Env, push_force
 from jaxgait.joints import SoftLimits, q_to_phi
-from jaxgait.linalg import cho_solve, cholesky
+from jaxgait.linalg import spd_solve
 from jaxgait.params import FBL, ParamTable
 from jaxgait.reflex import (
     ReflexConfig,
@@ -408,21 +408,18 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
     a = jnp.concatenate([crow.a_n, crow.a_t, a_lim])
     c = jnp.concatenate([crow.c_n, crow.c_t, c_lim])
 
-    # 4. MJX multibody dynamics: mass matrix M and bias forces (constraint solver off);
-    # one Cholesky of M gives both the smooth acceleration and M^-1 J^T of the rows
+    # 4. MJX multibody dynamics: mass matrix M and bias forces (constraint solver off)
     M, qfrc_smooth = model.mass_and_forces(s.qpos, s.qvel, qfrc)
-    sol = cho_solve(cholesky(M), jnp.concatenate([qfrc_smooth[:, None], J.T], 1))
-    qacc0, minv_jt = sol[:, 0], sol[:, 1:]
 
-    # 5. implicit rows, then the forces each law allows
-    y, _ = implicit_row_velocities(J, a, c, s.qvel, qacc0, minv_jt, dt)
+    # 5. implicit rows, then the forces each law allows, applied through M
+    y = implicit_row_velocities(J, a, c, M, s.qvel, qfrc_smooth, dt)
     f_c, cstate, _ = contact_finalize(model.contact, crow, s.contact, pts[:4], y[:4], y[4:8])
     f_lim = a_lim - c_lim * y[8:]
     f_lim = jnp.where(a_lim > 0, jnp.maximum(f_lim, 0.0), jnp.minimum(f_lim, 0.0))
     f_rows = jnp.concatenate(
         [(f_c * crow.normal).sum(-1), (f_c * crow.tangent).sum(-1), f_lim]
     )  # row components of the final forces (normal and tangent are orthonormal)
-    qacc = qacc0 + minv_jt @ f_rows
+    qacc = spd_solve(M, qfrc_smooth + jnp.sum(J * f_rows[:, None], axis=0))
     grf = f_c.reshape(2, 2, 2).sum(1)  # per leg (x, z)
     mg = model.mass * 9.81
 

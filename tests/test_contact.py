@@ -93,13 +93,13 @@ def test_implicit_rows_single_mass_matches_backward_euler():
     # one row on a 0.2 kg point: (1 + dt c / m) y = v + dt (g + a / m)
     m, dt, c, a, v, g = 0.2, 5e-4, 2.0e4, 50.0, -1.0, -9.81
     J = jnp.ones((1, 1))
-    y, _ = implicit_row_velocities(
+    y = implicit_row_velocities(
         J,
         jnp.asarray([a]),
         jnp.asarray([c]),
+        jnp.asarray([[m]]),
         jnp.asarray([v]),
-        jnp.asarray([g]),
-        jnp.asarray([[1 / m]]),
+        jnp.asarray([m * g]),
         dt,
     )
     assert float(y[0]) == pytest.approx((v + dt * (g + a / m)) / (1 + dt * c / m))
@@ -115,13 +115,13 @@ def test_implicit_damping_is_stable_where_explicit_is_not():
         pos = jnp.asarray([[0.0, z]])
         vel = jnp.asarray([[0.0, vz]])
         rows = contact_rows(CP, ter, st, pos, vel)
-        y, _ = implicit_row_velocities(
+        y = implicit_row_velocities(
             jnp.ones((1, 1)),
             rows.a_n,
             rows.c_n,
+            jnp.asarray([[m]]),
             jnp.asarray([vz]),
-            jnp.asarray([-9.81]),
-            jnp.asarray([[1 / m]]),
+            jnp.asarray([-9.81 * m]),
             dt,
         )
         _, st, fn = contact_finalize(CP, rows, st, pos, y, jnp.zeros(1))

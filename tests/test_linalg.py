@@ -60,17 +60,19 @@ def test_solve_under_vmap_and_bad_shapes():
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), zeros=st.integers(0, 14))
 def test_implicit_rows_match_the_dense_backward_euler_system(seed, zeros):
-    """y solves (I + dt A C) y = J v + dt J qacc0 + dt A a, also with undamped rows (c = 0)."""
+    """y = J v+ with v+ from the dual row system (I + dt A C) y = J v + dt J M^-1 f + dt A a,
+    A = J M^-1 J^T (the same backward-Euler step), also with undamped rows (c = 0)."""
     rng = np.random.default_rng(seed)
     nv, R, dt = 9, 14, 5e-4
-    minv = np.linalg.inv(_spd(rng, nv, cond=1e2) * 5.0)
+    M = _spd(rng, nv, cond=1e2) * 5.0
+    minv = np.linalg.inv(M)
     J = rng.normal(size=(R, nv))
     c = rng.uniform(0, 3e4, size=R)
     c[rng.permutation(R)[:zeros]] = 0.0
-    a, v, qacc0 = rng.normal(size=R) * 100, rng.normal(size=nv), rng.normal(size=nv)
+    a, v, f = rng.normal(size=R) * 100, rng.normal(size=nv), rng.normal(size=nv) * 50
     A = J @ minv @ J.T
-    want = np.linalg.solve(np.eye(R) + dt * A * c[None, :], J @ v + dt * J @ qacc0 + dt * A @ a)
-    y, _ = implicit_row_velocities(*map(jnp.asarray, (J, a, c, v, qacc0, minv @ J.T)), dt)
+    want = np.linalg.solve(np.eye(R) + dt * A * c[None, :], J @ v + dt * J @ minv @ f + dt * A @ a)
+    y = implicit_row_velocities(*map(jnp.asarray, (J, a, c, M, v, f)), dt)
     np.testing.assert_allclose(np.asarray(y), want, rtol=1e-7, atol=1e-9)
 
 
