@@ -21,6 +21,7 @@ same run.  Usage::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import resource
@@ -117,10 +118,22 @@ def run_case(kind: str, batch: int, steps: int, repeats: int) -> dict:
     }
 
 
+@contextlib.contextmanager
+def _swapped(obj, attr, value):
+    old = getattr(obj, attr)
+    setattr(obj, attr, value)
+    try:
+        yield
+    finally:
+        setattr(obj, attr, old)
+
+
 def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
     """Where the time goes: the full step next to variants with one part removed or alone.
 
-    All variants run in this one process, interleaved, so their ratios are comparable.
+    Ablations swap one function of the step (e.g. ``muscle.muscle_step``) while their variant
+    is traced.  All variants run in this one process, interleaved, so their ratios are
+    comparable.
     """
     import dataclasses
     from functools import partial
@@ -129,7 +142,7 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
     import jax.numpy as jnp
     from mujoco import mjx
 
-    from jaxgait import envs, muscle, sim
+    from jaxgait import energy, envs, muscle, sim
 
     model = sim.make_model()
     cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
@@ -150,13 +163,31 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
         return jnp.full(s.shape[:-1] + (7,), 0.05, s.dtype)  # one row per (delayed) leg
 
     explicit = partial(muscle.muscle_step, implicit=False)
-    variants = {
-        "full step": (scan_step(model), (s0, params, env)),
-        "no reflex law (constant stim)": (
-            scan_step(dataclasses.replace(model, law=const_law)),
-            (s0, params, env),
-        ),
-    }
+    compiled = {}
+
+    def add(name, fn, arg, *swaps):
+        """Compile one variant; ``swaps`` (module, attribute, value) hold while it is traced."""
+        with contextlib.ExitStack() as stack:
+            for obj, attr, value in swaps:
+                stack.enter_context(_swapped(obj, attr, value))
+            compiled[name] = (jax.jit(fn).lower(arg).compile(), arg)
+
+    full = (s0, params, env)
+    add("full step", scan_step(model), full)
+    add("no reflex law (constant stim)", scan_step(dataclasses.replace(model, law=const_law)), full)
+    add(
+        "full step, CE solve with 2 Newton iterations",
+        scan_step(model),
+        full,
+        (muscle, "muscle_step", partial(muscle.muscle_step, newton_iters=2)),
+    )
+    add("full step, explicit CE", scan_step(model), full, (muscle, "muscle_step", explicit))
+    add(
+        "full step without metabolic energy",
+        scan_step(model),
+        full,
+        (energy, "metabolic_rate", lambda table, stim, *a: jnp.zeros_like(stim)),
+    )
     d0 = jax.vmap(lambda q, v: model._template.replace(qpos=q, qvel=v))(s0.qpos, s0.qvel)
 
     def mjx_only(fn):
@@ -166,8 +197,18 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
 
         return run
 
-    variants["mjx.step alone"] = (mjx_only(mjx.step), d0)
-    variants["mjx.forward alone"] = (mjx_only(mjx.forward), d0)
+    add("mjx.step alone", mjx_only(mjx.step), d0)
+    add("mjx.forward alone", mjx_only(mjx.forward), d0)
+
+    def mass_and_forces_only(a):
+        def body(c, _):
+            q, v = c
+            M, f = jax.vmap(model.mass_and_forces)(q, v, jnp.zeros_like(v))
+            return (q + 1e-6 * f, v + 1e-6 * M[:, 0]), None
+
+        return jax.lax.scan(body, a, None, length=steps)[0]
+
+    add("MJX M and bias forces alone (step's part)", mass_and_forces_only, (s0.qpos, s0.qvel))
 
     def muscles_only(ms):
         lm = ms.l_ce + jnp.asarray(model.muscles.l_slack)
@@ -187,9 +228,8 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
         f = jax.vmap(one)
         return jax.lax.scan(lambda m, _: (f(m), None), ms, None, length=steps)[0]
 
-    variants["muscle_step alone (implicit)"] = (muscles_only, s0.muscle)
-    variants["muscle_step alone (explicit)"] = (muscles_explicit, s0.muscle)
-    compiled = {k: (jax.jit(f), a) for k, (f, a) in variants.items()}
+    add("muscle_step alone (implicit)", muscles_only, s0.muscle)
+    add("muscle_step alone (explicit)", muscles_explicit, s0.muscle)
     for f, a in compiled.values():
         jax.block_until_ready(f(a))
     best = {k: float("inf") for k in compiled}

@@ -141,8 +141,13 @@ def metabolic_rate(table: MuscleTable, stim, act, l_ce, v_ce, f_ce, f_mtu):
     Arguments as in ``metabolic_components``.  Sum over muscles (and legs) and integrate over
     time for the energy [J]; the thesis' dE = dt * sum_m E_m.
     """
-    c = metabolic_components(table, stim, act, l_ce, v_ce, f_ce, f_mtu)
-    return c["activation"] + c["maintenance"] + c["shortening"] + c["work"]
+    xs = jnp.broadcast_arrays(stim, act, l_ce, v_ce, f_ce, f_mtu)
+    shape = xs[0].shape
+    if len(shape) > 1:  # (..., L, M) -> (..., L M), as in ``jaxgait.muscle.muscle_step``
+        table = table.tiled(shape[-2])
+        xs = [x.reshape(shape[:-2] + (shape[-2] * shape[-1],)) for x in xs]
+    c = metabolic_components(table, *xs)
+    return (c["activation"] + c["maintenance"] + c["shortening"] + c["work"]).reshape(shape)
 
 
 def basal_rate(body_mass):

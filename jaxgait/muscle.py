@@ -97,6 +97,8 @@ _DEN_MIN = 1e-4
 _LCE_MIN = 0.05
 
 _NO_ARM, _CONST_ARM, _COS_ARM = 0, 1, 2
+_PER_MUSCLE = ("f_max", "v_max", "l_opt", "l_slack", "type1")  # (M,) columns
+_PER_JOINT = ("r0", "phi_max", "phi_ref", "rho", "sign", "arm")  # (M, 3) columns
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,13 +147,13 @@ class MuscleTable:
     def __post_init__(self):
         object.__setattr__(self, "names", tuple(self.names))
         m = len(self.names)
-        for k in ("f_max", "v_max", "l_opt", "l_slack", "type1"):
+        for k in _PER_MUSCLE:
             a = np.array(getattr(self, k), dtype=np.float64)
             if a.shape != (m,):
                 raise ValueError(f"MuscleTable.{k}: shape {a.shape}, expected ({m},)")
             a.setflags(write=False)
             object.__setattr__(self, k, a)
-        for k in ("r0", "phi_max", "phi_ref", "rho", "sign", "arm"):
+        for k in _PER_JOINT:
             dtype = np.int32 if k == "arm" else np.float64
             a = np.array(getattr(self, k), dtype=dtype)
             if a.shape != (m, 3):
@@ -166,6 +168,13 @@ class MuscleTable:
     def n(self) -> int:
         """Number of muscles M."""
         return len(self.names)
+
+    def tiled(self, reps: int) -> MuscleTable:
+        """This table repeated ``reps`` times: muscle i of copy k at index k M + i, the order
+        of a (..., reps, M) array with its last two axes merged (e.g. two legs)."""
+        per = {k: np.tile(getattr(self, k), reps) for k in _PER_MUSCLE}
+        arms = {k: np.tile(getattr(self, k), (reps, 1)) for k in _PER_JOINT}
+        return dataclasses.replace(self, names=self.names * reps, **per, **arms)
 
     @property
     def spans(self) -> np.ndarray:
@@ -565,16 +574,8 @@ def _f_v_inverse_of_v_from_fv(v_n, N, K):
     return jnp.where(v_n <= 1.0, f_v(v_n, N, K), N + 100.0 * (v_n - 1.0))
 
 
-def _tiled(table: MuscleTable, reps: int) -> MuscleTable:
-    """The table repeated ``reps`` times (muscle i of copy k at index k M + i)."""
-    per = {
-        k: np.tile(getattr(table, k), reps) for k in ("f_max", "v_max", "l_opt", "l_slack", "type1")
-    }
-    arms = {
-        k: np.tile(getattr(table, k), (reps, 1))
-        for k in ("r0", "phi_max", "phi_ref", "rho", "sign", "arm")
-    }
-    return dataclasses.replace(table, names=table.names * reps, **per, **arms)
+def _merge_last_two(x):
+    return x.reshape(x.shape[:-2] + (x.shape[-2] * x.shape[-1],))
 
 
 def muscle_step(
@@ -625,7 +626,8 @@ def muscle_step(
         ``v_ce`` [m/s]: CE velocity of the first sub-step, (l' - l_ce) / h (for the implicit
           scheme the backward-Euler velocity v_ce(A, l', l_mtu), for the explicit one
           v_ce(A, l_ce, l_mtu));
-        ``f_ce`` [N]: active CE force A F_max f_l f_v at the same point as ``v_ce``;
+        ``f_ce`` [N]: active CE force A F_max f_l f_v at the same point as ``v_ce`` (implicit:
+          f_l at the end of the step, f_v of its velocity);
         ``act`` [-], ``l_ce`` [m]: the state at the start of the step; ``stim`` [-]: the
           clipped stimulation.
       These are the inputs of ``jaxgait.energy.metabolic_rate``.
@@ -639,21 +641,10 @@ def muscle_step(
     shape = jnp.broadcast_shapes(act0.shape, l_ce0.shape, l_mtu.shape, stim.shape)
     act0, l_ce0, l_mtu, stim = (jnp.broadcast_to(x, shape) for x in (act0, l_ce0, l_mtu, stim))
     if len(shape) > 1:
-        # (..., M) -> one flat axis against a tiled table: XLA's CPU loops vectorise the
+        # (..., L, M) -> (..., L M) against a tiled table: XLA's CPU loops vectorise the
         # minor axis, and M = 7 muscles fill less than half of a vector register.
-        flat = _tiled(table, int(np.prod(shape[:-1])))
-        new, info = muscle_step(
-            flat,
-            MuscleState(act=act0.reshape(-1), l_ce=l_ce0.reshape(-1)),
-            stim.reshape(-1),
-            l_mtu.reshape(-1),
-            dt,
-            substeps,
-            implicit,
-            newton_iters,
-        )
-        back = lambda x: x.reshape(shape)
-        return jax.tree.map(back, new), {k: back(v) for k, v in info.items()}
+        table = table.tiled(shape[-2])
+        act0, l_ce0, l_mtu, stim = (_merge_last_two(x) for x in (act0, l_ce0, l_mtu, stim))
     h = jnp.asarray(dt, dtype=fdt) / substeps
     decay = jnp.exp(-h / table.tau_act)
     vscale = _p(table.v_max * table.l_opt, fdt)  # [m/s] per unit v_n
@@ -715,8 +706,13 @@ def muscle_step(
         return stim + (act - stim) * decay, l_new, v
 
     act1, l_ce1, v0 = advance(act0, l_ce0)
-    at = l_ce1 if implicit else l_ce0
-    fv_at, a_fl_at = force_velocity_balance(table, act0, at, l_mtu)
+    if implicit:
+        # F_ce = A F_max f_l f_v (eq. 2.2) at the end point and velocity of the step; equal to
+        # the force balance there up to the solver's tolerance, without evaluating it again
+        a_fl_at = jnp.maximum(act0, ACT_MIN) * f_l(l_ce1 / _p(table.l_opt, fdt), table.w, table.c)
+        fv_at = f_v_inv(v0)
+    else:
+        fv_at, a_fl_at = force_velocity_balance(table, act0, l_ce0, l_mtu)
     if substeps > 1:
 
         def body(_, carry):
@@ -734,4 +730,5 @@ def muscle_step(
         "l_ce": l_ce0,
         "stim": stim,
     }
-    return MuscleState(act=act1, l_ce=l_ce1), info
+    info = {k: v.reshape(shape) for k, v in info.items()}
+    return MuscleState(act=act1.reshape(shape), l_ce=l_ce1.reshape(shape)), info

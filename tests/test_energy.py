@@ -141,3 +141,20 @@ def test_energy_from_muscle_step_info():
         t, info["stim"], info["act"], info["l_ce"], info["v_ce"], info["f_ce"], info["f_mtu"]
     )
     assert e.shape == (7,) and bool(jnp.all(e > 0))
+
+
+def test_metabolic_rate_over_legs_and_time_equals_per_row():
+    """(T, legs, M) inputs (merged to one muscle axis inside) give the per-row rates."""
+    rng = np.random.default_rng(5)
+    t = GEYER7
+    shape = (3, 2, 7)
+    stim, act = rng.uniform(0, 1, shape), rng.uniform(0, 1, shape)
+    l_ce = np.asarray(t.l_opt) * rng.uniform(0.4, 1.6, shape)
+    v_ce = rng.normal(0, 0.3, shape)
+    f_ce, f_mtu = rng.uniform(0, 2000, shape), rng.uniform(0, 2000, shape)
+    e = en.metabolic_rate(t, stim, act, l_ce, v_ce, f_ce, f_mtu)
+    assert e.shape == shape
+    for i in range(3):
+        for leg in range(2):
+            row = [x[i, leg] for x in (stim, act, l_ce, v_ce, f_ce, f_mtu)]
+            np.testing.assert_allclose(e[i, leg], en.metabolic_rate(t, *row), rtol=1e-6)

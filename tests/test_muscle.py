@@ -476,6 +476,23 @@ def test_step_info_consistent_and_batched():
     np.testing.assert_allclose(s_leg1.l_ce, s1.l_ce[1], rtol=1e-12)
 
 
+def test_step_over_batch_and_legs_equals_per_row():
+    """(B, legs, M) states (legs and muscles merged to one axis inside) step row by row."""
+    t = GEYER7
+    stim, lm = _gait_inputs(6)
+    lm3 = jnp.stack([lm[0:2], lm[2:4] * 1.01, lm[4:6] * 0.99])  # (3, 2, 7)
+    st3 = jnp.stack([stim[0:2], stim[2:4], stim[4:6]])
+    s = _init_state(t, lm3, 0.1)
+    s1, info = _step(t, s, st3, lm3, 5e-4)
+    assert s1.l_ce.shape == info["f_ce"].shape == (3, 2, 7)
+    for b in range(3):
+        for leg in range(2):
+            sb = MuscleState(act=s.act[b, leg], l_ce=s.l_ce[b, leg])
+            r1, rinfo = _step(t, sb, st3[b, leg], lm3[b, leg], 5e-4)
+            np.testing.assert_allclose(s1.l_ce[b, leg], r1.l_ce, rtol=1e-12)
+            np.testing.assert_allclose(info["f_ce"][b, leg], rinfo["f_ce"], rtol=1e-12)
+
+
 def test_step_gradient_matches_finite_differences():
     """d(sum F_mtu)/d(stim gain) through 0.1 s of implicit steps (implicit-function-theorem
     derivative of the Newton solve) against central differences."""
