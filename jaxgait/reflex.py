@@ -213,7 +213,7 @@ def delayed_stimulation(
     Returns (stim (2, 7), new delay line).
     """
     if taps is None:  # the default delays, scaled to the line (its length is the longest)
-        n, ds = st.lines.buf.shape[0], ReflexConfig().delays
+        n, ds = st.lines.n_steps, ReflexConfig().delays
         taps = tuple(round(n * d / max(ds)) for d in ds)
     outs, lines = delay_taps(st.lines, sensors, taps)  # (3, 2, S)
     g, legs, ns = outs.shape
