@@ -155,3 +155,17 @@ def test_fall_stops_and_freezes_summary(fbl_model):
     k = int(alive.sum())
     assert alive[:k].all() and not alive[k:].any()
     assert abs(float(tr.t[k - 1]) - float(sm.duration)) <= 0.011
+
+
+def test_clock_stays_on_the_step_grid(fbl_model):
+    """t after n steps is n dt: 20,000 float32 additions of dt drift by milliseconds."""
+    cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
+    p = jnp.asarray(fbl_model.table.init, jnp.float32)
+    env = envs.make_env("flat", jax.random.PRNGKey(0))
+    s0 = sim.initial_state(fbl_model, p, env, cfg)
+    run = jax.jit(
+        lambda s: jax.lax.fori_loop(0, 20000, lambda i, s: sim.step(fbl_model, cfg, p, env, s), s)
+    )
+    s = run(s0)
+    assert float(s0.t) == 0.0
+    assert float(s.t) == pytest.approx(20000 * fbl_model.dt, abs=2e-6)
