@@ -29,7 +29,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait.muscle import MuscleTable
+from jaxgait.muscle import MuscleTable, merge_muscle_axes
 
 __all__ = [
     "BASAL_RATE",
@@ -143,9 +143,7 @@ def metabolic_rate(table: MuscleTable, stim, act, l_ce, v_ce, f_ce, f_mtu):
     """
     xs = jnp.broadcast_arrays(stim, act, l_ce, v_ce, f_ce, f_mtu)
     shape = xs[0].shape
-    if len(shape) > 1:  # (..., L, M) -> (..., L M), as in ``jaxgait.muscle.muscle_step``
-        table = table.tiled(shape[-2])
-        xs = [x.reshape(shape[:-2] + (shape[-2] * shape[-1],)) for x in xs]
+    table, xs = merge_muscle_axes(table, *xs)
     c = metabolic_components(table, *xs)
     return (c["activation"] + c["maintenance"] + c["shortening"] + c["work"]).reshape(shape)
 

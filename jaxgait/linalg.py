@@ -1,7 +1,8 @@
 """Small dense symmetric positive-definite solves, unrolled into elementwise operations.
 
-The step solves two small SPD systems per environment: the 9 x 9 joint-space mass matrix
-and the 14 x 14 system of the stiff contact/soft-limit rows (:mod:`jaxgait.rows`).  Under
+The step solves two small SPD systems per environment, both 9 x 9: the mass matrix
+augmented by the damping of the stiff contact/soft-limit rows (:mod:`jaxgait.rows`), and
+the mass matrix itself.  Under
 ``vmap`` XLA's CPU backend runs ``jnp.linalg`` / ``jax.scipy.linalg`` factorisations as one
 LAPACK call per environment, which costs more than the whole multibody forward pass at
 batch 512.  Written out entry by entry with static Python loops, a Cholesky factorisation
@@ -9,7 +10,7 @@ and its substitutions become a few hundred multiply-adds over the batch axis tha
 into a handful of vectorised loops.  Use only for small n (the trace grows as n^3 / 6).
 
 No pivoting is needed: the matrices are symmetric positive definite (a mass matrix, and
-I + dt C^1/2 A C^1/2 with A positive semi-definite).
+M + dt J^T C J with J^T C J positive semi-definite).
 """
 
 from __future__ import annotations

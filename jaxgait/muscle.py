@@ -65,6 +65,7 @@ __all__ = [
     "force_velocity_balance",
     "init_lce",
     "init_muscle_state",
+    "merge_muscle_axes",
     "joint_torques",
     "moment_arms",
     "mtu_force",
@@ -463,6 +464,11 @@ def mtu_force(table: MuscleTable, act, l_ce, l_mtu):
     return _p(table.f_max, dt) * fse
 
 
+def _active_fl(table: MuscleTable, act, l_norm):
+    """A f_l(l_ce / l_opt) with A floored at ACT_MIN (Geyer's pre-activation) [-]."""
+    return jnp.maximum(act, ACT_MIN) * f_l(l_norm, table.w, table.c)
+
+
 def force_velocity_balance(table: MuscleTable, act, l_ce, l_mtu):
     """Solve the force balance for the force-velocity factor, eq. 2.13-2.15.
 
@@ -477,7 +483,7 @@ def force_velocity_balance(table: MuscleTable, act, l_ce, l_mtu):
     l_opt = _p(table.l_opt, dt)
     l_n = l_ce / l_opt
     fse = f_se(l_mtu - l_ce, _p(table.l_slack, dt), table.eps_ref)
-    a_fl = jnp.maximum(act, ACT_MIN) * f_l(l_n, table.w, table.c)
+    a_fl = _active_fl(table, act, l_n)
     den = jnp.maximum(a_fl + f_pe_star(l_n, table.w), _DEN_MIN)
     fv = (fse + f_be(l_n, table.w)) / den
     return fv, a_fl
@@ -574,8 +580,18 @@ def _f_v_inverse_of_v_from_fv(v_n, N, K):
     return jnp.where(v_n <= 1.0, f_v(v_n, N, K), N + 100.0 * (v_n - 1.0))
 
 
-def _merge_last_two(x):
-    return x.reshape(x.shape[:-2] + (x.shape[-2] * x.shape[-1],))
+def merge_muscle_axes(table: MuscleTable, *xs):
+    """(..., L, M) arrays (e.g. legs x muscles) as (..., L M) against ``table.tiled(L)``.
+
+    XLA's CPU loops vectorise the minor axis, and M = 7 muscles fill less than half of a
+    vector register.  Returns (tiled table, merged arrays); arrays of one axis come back as
+    they are.  The caller reshapes results back to (..., L, M).
+    """
+    shape = xs[0].shape
+    if len(shape) < 2:
+        return table, xs
+    merged = shape[:-2] + (shape[-2] * shape[-1],)
+    return table.tiled(shape[-2]), tuple(x.reshape(merged) for x in xs)
 
 
 def muscle_step(
@@ -605,10 +621,10 @@ def muscle_step(
       linearisation at v_n = 0.  So the step never exceeds the explicit one, fixed points
       (v_ce = 0) are those of the ODE, and it stays stable and consistent where explicit Euler
       at h = 0.5 ms is not: low activation with a nearly slack tendon (A f_l tiny) and fast
-      eccentric states, where f_v is flat and v_ce very sensitive to force.  Cost: about
-      4 + 2 newton_iters evaluations of the force balance per sub-step.  Derivatives of the
-      step (for gradient-based optimisation) come from the implicit-function theorem, not by
-      differentiating the iterations.
+      eccentric states, where f_v is flat and v_ce very sensitive to force.  Cost: 1 +
+      newton_iters evaluations of the force balance with its derivative per sub-step.
+      Derivatives of the step (for gradient-based optimisation) come from the
+      implicit-function theorem, not by differentiating the iterations.
 
       ``implicit=False``: explicit Euler, l' = l_ce + h v_ce(A, l_ce, l_mtu); stable only
       while h |dv_ce/dl_ce| < 2.
@@ -640,11 +656,7 @@ def muscle_step(
     stim = jnp.clip(jnp.asarray(stim, dtype=fdt), ACT_MIN, 1.0)
     shape = jnp.broadcast_shapes(act0.shape, l_ce0.shape, l_mtu.shape, stim.shape)
     act0, l_ce0, l_mtu, stim = (jnp.broadcast_to(x, shape) for x in (act0, l_ce0, l_mtu, stim))
-    if len(shape) > 1:
-        # (..., L, M) -> (..., L M) against a tiled table: XLA's CPU loops vectorise the
-        # minor axis, and M = 7 muscles fill less than half of a vector register.
-        table = table.tiled(shape[-2])
-        act0, l_ce0, l_mtu, stim = (_merge_last_two(x) for x in (act0, l_ce0, l_mtu, stim))
+    table, (act0, l_ce0, l_mtu, stim) = merge_muscle_axes(table, act0, l_ce0, l_mtu, stim)
     h = jnp.asarray(dt, dtype=fdt) / substeps
     decay = jnp.exp(-h / table.tau_act)
     vscale = _p(table.v_max * table.l_opt, fdt)  # [m/s] per unit v_n
@@ -709,7 +721,7 @@ def muscle_step(
     if implicit:
         # F_ce = A F_max f_l f_v (eq. 2.2) at the end point and velocity of the step; equal to
         # the force balance there up to the solver's tolerance, without evaluating it again
-        a_fl_at = jnp.maximum(act0, ACT_MIN) * f_l(l_ce1 / _p(table.l_opt, fdt), table.w, table.c)
+        a_fl_at = _active_fl(table, act0, l_ce1 / _p(table.l_opt, fdt))
         fv_at = f_v_inv(v0)
     else:
         fv_at, a_fl_at = force_velocity_balance(table, act0, l_ce0, l_mtu)
