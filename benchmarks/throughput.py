@@ -176,10 +176,10 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
     add("full step", scan_step(model), full)
     add("no reflex law (constant stim)", scan_step(dataclasses.replace(model, law=const_law)), full)
     add(
-        "full step, CE solve with 2 Newton iterations",
+        "full step, CE solve with solve_iters=2 (default 1)",
         scan_step(model),
         full,
-        (muscle, "muscle_step", partial(muscle.muscle_step, newton_iters=2)),
+        (muscle, "muscle_step", partial(muscle.muscle_step, solve_iters=2)),
     )
     add("full step, explicit CE", scan_step(model), full, (muscle, "muscle_step", explicit))
     add(

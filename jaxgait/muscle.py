@@ -306,6 +306,14 @@ def f_l(l_norm, w=W_DEFAULT, c=C_DEFAULT):
     return jnp.exp(c * jnp.abs(x) ** 3)
 
 
+#: default iterations of the backward-Euler CE solve after its first intersection
+#: (``muscle_step``); per-step accuracy in ``benchmarks/ce_solver_accuracy.py``
+CE_SOLVE_ITERS = 1
+
+# slope d f_v / d v_n of eq. 2.16's third branch (Geyer's code: v_n = 0.01 (f_v - N) + 1)
+FV_LINE_SLOPE = 100.0
+
+
 def f_v(v_n, N=N_DEFAULT, K=K_DEFAULT):
     """CE force-velocity factor (forward form of eq. 2.5 / 2.16, shortening negative).
 
@@ -342,7 +350,7 @@ def v_from_fv(fv, N=N_DEFAULT, K=K_DEFAULT):
     conc = (f_lo - 1.0) / (K * f_lo + 1.0)
     x = (jnp.clip(fv, 1.0, N) - N) / (N - 1.0)
     ecc = (x + 1.0) / (1.0 - 7.56 * K * x)
-    lin = 0.01 * (fv - N) + 1.0
+    lin = (fv - N) / FV_LINE_SLOPE + 1.0
     return jnp.where(fv <= 1.0, conc, jnp.where(fv <= N, ecc, lin))
 
 
@@ -502,6 +510,34 @@ def contraction_velocity(table: MuscleTable, act, l_ce, l_mtu):
     return v_n * _p(table.v_max * table.l_opt, dt)
 
 
+def backward_euler_velocity(table: MuscleTable, act, l_ce, l_mtu, h, iters: int = 100):
+    """Reference solution of the backward-Euler CE step by bisection (slow; for checks).
+
+    The root v_n [-] of f_v,balance(l_ce + h v_max l_opt v_n) = f_v(v_n) (eq. 2.15 at the end
+    point against the exact inverse of eq. 2.16) in the bracket [0, v_n,explicit], bisected
+    ``iters`` times; the value ``muscle_step``'s solver converges to.  act, l_ce, l_mtu are
+    (..., M) arrays [-, m, m]; h [s] is the step.  Returns v_n (..., M).
+    """
+    act, l_ce, l_mtu = jnp.asarray(act), jnp.asarray(l_ce), jnp.asarray(l_mtu)
+    fdt = _dtype(act, l_ce, l_mtu)
+    c = jnp.asarray(h, fdt) * _p(table.v_max * table.l_opt, fdt)
+
+    def g(v):
+        fb = force_velocity_balance(table, act, l_ce + c * v, l_mtu)[0]
+        return fb - _f_v_inverse_of_v_from_fv(v, table.N, table.K)
+
+    v_e = v_from_fv(force_velocity_balance(table, act, l_ce, l_mtu)[0], table.N, table.K)
+
+    def halve(_, bounds):
+        lo, hi = bounds
+        mid = 0.5 * (lo + hi)
+        above = g(mid) > 0.0  # the root lies above mid
+        return jnp.where(above, mid, lo), jnp.where(above, hi, mid)
+
+    lo, hi = jax.lax.fori_loop(0, iters, halve, (jnp.minimum(v_e, 0.0), jnp.maximum(v_e, 0.0)))
+    return 0.5 * (lo + hi)
+
+
 def init_lce(table: MuscleTable, l_mtu, act=None):
     """Equilibrium CE length for a given MTU length [m], shape (..., M) (eq. 2.25-2.30).
 
@@ -577,7 +613,7 @@ def init_muscle_state(table: MuscleTable, l_mtu, act=ACT_MIN, exact=True):
 def _f_v_inverse_of_v_from_fv(v_n, N, K):
     """Exact inverse of ``v_from_fv`` on v_n >= -1: ``f_v`` up to v_n = 1, then the line
     fv = N + 100 (v_n - 1) of its third branch."""
-    return jnp.where(v_n <= 1.0, f_v(v_n, N, K), N + 100.0 * (v_n - 1.0))
+    return jnp.where(v_n <= 1.0, f_v(v_n, N, K), N + FV_LINE_SLOPE * (v_n - 1.0))
 
 
 def merge_muscle_axes(table: MuscleTable, *xs):
@@ -602,7 +638,7 @@ def muscle_step(
     dt,
     substeps: int = 1,
     implicit: bool = True,
-    newton_iters: int = 3,
+    solve_iters: int = CE_SOLVE_ITERS,
 ):
     """Advance the MTU state by dt [s] with ``substeps`` fixed sub-steps of h = dt / substeps.
 
@@ -616,15 +652,21 @@ def muscle_step(
       ``implicit=True`` (default): backward Euler, l' = l_ce + h v_ce(A, l', l_mtu).  It is
       solved per muscle for the normalised velocity v_n of the step, as the root of
       f_v,balance(l_ce + h v_max l_opt v_n) = f_v(v_n) (eq. 2.15 at the end point against the
-      exact inverse of eq. 2.16), by ``newton_iters`` safeguarded Newton iterations (exact
-      derivatives from jax.jvp) inside the bracket [0, v_n,explicit] and started from the
-      linearisation at v_n = 0.  So the step never exceeds the explicit one, fixed points
-      (v_ce = 0) are those of the ODE, and it stays stable and consistent where explicit Euler
-      at h = 0.5 ms is not: low activation with a nearly slack tendon (A f_l tiny) and fast
-      eccentric states, where f_v is flat and v_ce very sensitive to force.  Cost: 1 +
-      newton_iters evaluations of the force balance with its derivative per sub-step.
-      Derivatives of the step (for gradient-based optimisation) come from the
-      implicit-function theorem, not by differentiating the iterations.
+      exact inverse of eq. 2.16), inside the bracket [0, v_n,explicit].  Each iteration
+      linearises only the balance (value and slope from jax.jvp) and intersects that line with
+      the exact f_v: on either side of v_n = 0 a Moebius map (a1 v + 1) / (c1 v + 1), so a
+      quadratic solved in closed form, and beyond v_n = 1 the line of eq. 2.16's third branch.
+      The intersection is kept in the bracket (its midpoint if there is none).  The first is
+      taken at v_n = 0, then ``solve_iters`` more; ``benchmarks/ce_solver_accuracy.py``
+      measures how far the default is from the converged step (Newton's method on the whole
+      residual, used before, converged slowly where f_v bends sharply just above v_n = 0).
+      So the step never exceeds the explicit one, fixed points (v_ce = 0) are those of the
+      ODE, and it stays stable and consistent where explicit Euler at h = 0.5 ms is not: low
+      activation with a nearly slack tendon (A f_l tiny) and fast eccentric states, where f_v
+      is flat and v_ce very sensitive to force.  Cost: 1 + ``solve_iters`` evaluations of
+      the force balance with its slope per sub-step.  Derivatives of the step (for
+      gradient-based optimisation) come from the implicit-function theorem, not by
+      differentiating the iterations.
 
       ``implicit=False``: explicit Euler, l' = l_ce + h v_ce(A, l_ce, l_mtu); stable only
       while h |dv_ce/dl_ce| < 2.
@@ -674,28 +716,56 @@ def muscle_step(
         return _f_v_inverse_of_v_from_fv(v_n, N, K)
 
     def solve(act, l_ce, l_mtu, c):
-        """Backward-Euler v_n of one sub-step and the last Newton slope dg/dv."""
+        """Backward-Euler v_n of one sub-step and the slope dg/dv of its residual there."""
         fb0, dfb0 = balance_jvp(act, l_ce, l_mtu)
         v_e = v_from_fv(fb0, N, K)  # explicit step; the root lies in [0, v_e]
         lo, hi = jnp.minimum(v_e, 0.0), jnp.maximum(v_e, 0.0)
-        slope0 = jnp.where(fb0 > 1.0, (N - 1.0) * (7.56 * K + 1.0), 1.0 + K)  # f_v'(0+-)
-        dg = c * jnp.minimum(dfb0, 0.0) - slope0
-        v = jnp.clip((1.0 - fb0) / dg, lo, hi)
+        # on the root's side of v_n = 0 (the side of the explicit step), f_v is the Moebius
+        # map (a1 v + 1) / (c1 v + 1) (eq. 2.16 inverted; ``f_v``)
+        ecc = fb0 > 1.0
+        a1 = jnp.where(ecc, N * 7.56 * K + N - 1.0, 1.0)
+        c1 = jnp.where(ecc, 7.56 * K, -K)
 
-        def newton(_, carry):
-            v, lo, hi, _ = carry
+        def intersect(v, fb, dfb, lo, hi):
+            # the balance linearised at v, p + q x with q = c dfb, meets the exact f_v(x)
+            # either on its Moebius piece, where qa x^2 + qb x + qc = 0 (the root nearest
+            # the bracket), or, eccentric beyond v_n = 1, on the line N + 100 (x - 1) of
+            # eq. 2.16's third branch (the line still above f_v(1) = N at x = 1)
+            q = c * dfb
+            p = fb - q * v
+            qa, qb, qc = q * c1, p * c1 + q - a1, p - 1.0
+            disc = qb * qb - 4.0 * qa * qc
+            den = qb + jnp.where(qb >= 0.0, 1.0, -1.0) * jnp.sqrt(jnp.maximum(disc, 0.0))
+            # both roots without cancellation: 2 qc / (-den) and -den / (2 qa)
+            r_small = jnp.where(den != 0.0, -2.0 * qc / jnp.where(den != 0.0, den, 1.0), jnp.inf)
+            r_large = jnp.where(qa != 0.0, -den / jnp.where(qa != 0.0, 2.0 * qa, 1.0), jnp.inf)
+
+            def outside(r):
+                return jnp.maximum(lo - r, 0.0) + jnp.maximum(r - hi, 0.0)
+
+            r = jnp.where(outside(r_small) <= outside(r_large), r_small, r_large)
+            r = jnp.where(disc >= 0.0, r, jnp.nan)
+            on_line = ecc & (p + q > N) & (q < FV_LINE_SLOPE)
+            r = jnp.where(
+                on_line, (p - N + FV_LINE_SLOPE) / jnp.where(on_line, FV_LINE_SLOPE - q, 1.0), r
+            )
+            return jnp.where(jnp.isfinite(r), jnp.clip(r, lo, hi), 0.5 * (lo + hi))
+
+        def iterate(_, carry):
+            v, lo, hi = carry
             fb, dfb = balance_jvp(act, l_ce + c * v, l_mtu)
-            fv, dfv = jax.jvp(f_v_inv, (v,), (jnp.ones_like(v),))
-            g = fb - fv  # decreasing in v wherever the balance decreases with l_ce
+            g = fb - f_v_inv(v)  # decreasing in v wherever the balance decreases with l_ce
             lo = jnp.where(g > 0.0, v, lo)
             hi = jnp.where(g < 0.0, v, hi)
-            dg = c * dfb - dfv
-            v_new = v - g / jnp.where(dg < 0.0, dg, -1.0)
-            ok = (dg < 0.0) & (v_new >= lo) & (v_new <= hi)
-            return jnp.where(ok, v_new, 0.5 * (lo + hi)), lo, hi, dg
+            return intersect(v, fb, dfb, lo, hi), lo, hi
 
-        v, _, _, dg = jax.lax.fori_loop(0, newton_iters, newton, (v, lo, hi, dg), unroll=True)
-        return v, dg
+        v = intersect(jnp.zeros_like(fb0), fb0, dfb0, lo, hi)
+        v, _, _ = jax.lax.fori_loop(0, solve_iters, iterate, (v, lo, hi), unroll=True)
+        # dg/dv at the root, for the implicit-function derivative (XLA drops it from
+        # forward-only programs)
+        _, dfb = balance_jvp(act, l_ce + c * v, l_mtu)
+        _, dfv = jax.jvp(f_v_inv, (v,), (jnp.ones_like(v),))
+        return v, c * dfb - dfv
 
     @jax.custom_jvp
     def root(act, l_ce, l_mtu, c):

@@ -74,7 +74,10 @@ class SimConfig:
       chunk_s: simulated time per while-loop chunk [s]; a batch stops at chunk ends.
       v0: initial forward speed of the whole body [m/s].
       pose: initial posture name (see :data:`POSES`).
-      muscle_substeps: explicit sub-steps of the CE-length ODE per physics step.
+      muscle_substeps: sub-steps of the CE-length ODE per physics step.
+      ce_solve_iters: iterations of the backward-Euler CE solve after its first intersection
+        (``solve_iters`` of :func:`jaxgait.muscle.muscle_step`; more is closer to the
+        converged step and slower, see ``benchmarks/ce_solver_accuracy.py``).
       max_events: capacity of the touchdown event buffer.
       fall_hip_height: fall when the hip is lower than this above the ground [m].
       fall_pitch: fall when |trunk pitch| exceeds this [rad].
@@ -88,9 +91,16 @@ class SimConfig:
     v0: float = 1.3
     pose: str = "geyer"
     muscle_substeps: int = 1
+    ce_solve_iters: int = mus.CE_SOLVE_ITERS
     max_events: int = 512
     fall_hip_height: float = 0.6
     fall_pitch: float = 1.0
+
+    def __post_init__(self):
+        for name, lo in (("muscle_substeps", 1), ("ce_solve_iters", 0), ("max_events", 1)):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < lo:
+                raise ValueError(f"SimConfig.{name} must be an integer >= {lo}, got {v!r}")
 
 
 #: Initial postures, Winter convention in degrees: (trunk pitch, (hip, knee, ankle) of the
@@ -449,7 +459,9 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
     # 8. muscle state over the same step, against the MTU lengths at its end (the joints
     # have moved with the tendon forces of its start), and metabolic energy
     l_mtu_end = mus.mtu_length(table, q_to_phi(qpos[legq]))
-    mstate, info = mus.muscle_step(table, s.muscle, stim, l_mtu_end, dt, cfg.muscle_substeps)
+    mstate, info = mus.muscle_step(
+        table, s.muscle, stim, l_mtu_end, dt, cfg.muscle_substeps, solve_iters=cfg.ce_solve_iters
+    )
     rate = energy_mod.metabolic_rate(
         table, info["stim"], info["act"], info["l_ce"], info["v_ce"], info["f_ce"], info["f_mtu"]
     ).sum()

@@ -410,6 +410,57 @@ def test_implicit_stable_where_explicit_chatters():
     assert np.abs(v_n[-200:, _row(t, "HFL")]).max() > 0.5  # documents the explicit limit
 
 
+_be_reference = jax.jit(mu.backward_euler_velocity, static_argnums=(0, 5))
+
+
+def _v_n_of_step(table, state, l_mtu, dt, solve_iters=None):
+    args = () if solve_iters is None else (1, True, solve_iters)
+    _, info = _step(table, state, state.act, l_mtu, dt, *args)
+    return np.asarray(info["v_ce"]) / (table.v_max * table.l_opt)
+
+
+def test_implicit_step_root_on_the_line_branch():
+    """A soleus state from a walking rollout (low activation, CE at 0.53 l_opt, fast
+    lengthening): the root lies just beyond v_n = 1, on eq. 2.16's third branch, which the
+    solver intersects as a line (taking the Moebius piece there left the step at v_n = 0)."""
+    t = GEYER7
+    i = _row(t, "SOL")
+    act = np.full(7, 0.1)
+    act[i] = 0.14744776
+    l_ce = np.array(t.l_opt, float)
+    l_ce[i] *= 0.52915318
+    l_mtu = np.array(t.l_opt + t.l_slack, float)
+    l_mtu[i] = 0.2834329
+    s = MuscleState(act=jnp.asarray(act), l_ce=jnp.asarray(l_ce))
+    ref = np.asarray(_be_reference(t, s.act, s.l_ce, jnp.asarray(l_mtu), 5e-4, 200))
+    assert 1.0 < ref[i] < 1.01
+    v = _v_n_of_step(t, s, jnp.asarray(l_mtu), 5e-4)  # default iterations
+    assert v[i] == pytest.approx(ref[i], abs=1e-8)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.floats(-2.0, 0.0), min_size=7, max_size=7),
+    st.lists(st.floats(0.4, 1.7), min_size=7, max_size=7),
+    st.lists(st.floats(0.8, 1.2), min_size=7, max_size=7),
+)
+def test_implicit_step_converges_to_the_backward_euler_root(log_act, l_norm, mtu_ratio):
+    """Any state (A in [0.01, 1], l_ce in [0.4, 1.7] l_opt, l_mtu within 20 % of
+    l_opt + l_slack): the step stays in the bracket between 0 and the explicit step, and
+    the solver's iterations converge to the bisection root."""
+    t = GEYER7
+    s = MuscleState(
+        act=jnp.asarray(10.0 ** np.array(log_act)), l_ce=jnp.asarray(np.array(l_norm) * t.l_opt)
+    )
+    l_mtu = jnp.asarray(np.array(mtu_ratio) * (t.l_opt + t.l_slack))
+    v_e = np.asarray(_velocity(t, s.act, s.l_ce, l_mtu)) / (t.v_max * t.l_opt)
+    v = _v_n_of_step(t, s, l_mtu, 5e-4)
+    assert np.all(v * np.sign(v_e) >= 0.0) and np.all(np.abs(v) <= np.abs(v_e) * (1 + 1e-12))
+    ref = np.asarray(_be_reference(t, s.act, s.l_ce, l_mtu, 5e-4, 200))
+    err = np.abs(_v_n_of_step(t, s, l_mtu, 5e-4, solve_iters=12) - ref) * 5e-4 * t.v_max
+    assert err.max() < 1e-10  # [l_opt]
+
+
 @functools.lru_cache(maxsize=1)
 def _gait_inputs_cached():
     """0.6 s of gait-like joint motion and stimulation sampled at 0.5 ms (float64)."""
@@ -495,7 +546,7 @@ def test_step_over_batch_and_legs_equals_per_row():
 
 def test_step_gradient_matches_finite_differences():
     """d(sum F_mtu)/d(stim gain) through 0.1 s of implicit steps (implicit-function-theorem
-    derivative of the Newton solve) against central differences."""
+    derivative of the CE solve) against central differences."""
     t = GEYER7
     stim, lm = _gait_inputs(200)
 

@@ -169,3 +169,12 @@ def test_clock_stays_on_the_step_grid(fbl_model):
     s = run(s0)
     assert float(s0.t) == 0.0
     assert float(s.t) == pytest.approx(20000 * fbl_model.dt, abs=2e-6)
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [("muscle_substeps", 0), ("ce_solve_iters", -1), ("ce_solve_iters", 1.5), ("max_events", 0)],
+)
+def test_sim_config_rejects_bad_counts(field, value):
+    with pytest.raises(ValueError, match=f"SimConfig.{field}"):
+        sim.SimConfig(**{field: value})
