@@ -151,10 +151,10 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
     params = jnp.broadcast_to(jnp.asarray(model.table.init, jnp.float32), (batch, model.table.size))
     s0 = jax.vmap(lambda p, e: sim.initial_state(model, p, e, cfg))(params, env)
 
-    def scan_step(m):
+    def scan_step(m, c=cfg):
         def run(a):
             s, p, e = a
-            f = jax.vmap(lambda p, e, s: sim.step(m, cfg, p, e, s))
+            f = jax.vmap(lambda p, e, s: sim.step(m, c, p, e, s))
             return jax.lax.scan(lambda s, _: (f(p, e, s), None), s, None, length=steps)[0]
 
         return run
@@ -175,11 +175,11 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
     full = (s0, params, env)
     add("full step", scan_step(model), full)
     add("no reflex law (constant stim)", scan_step(dataclasses.replace(model, law=const_law)), full)
+    more = cfg.ce_solve_iters + 1
     add(
-        "full step, CE solve with solve_iters=2 (default 1)",
-        scan_step(model),
+        f"full step, CE solve with {more} iterations (default {cfg.ce_solve_iters})",
+        scan_step(model, dataclasses.replace(cfg, ce_solve_iters=more)),
         full,
-        (muscle, "muscle_step", partial(muscle.muscle_step, solve_iters=2)),
     )
     add("full step, explicit CE", scan_step(model), full, (muscle, "muscle_step", explicit))
     add(

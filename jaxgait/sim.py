@@ -167,6 +167,13 @@ class Model:
         legq = np.array([[b.qpos_adr(j) for j in leg] for leg in LEG_JOINTS], np.int32)
         return sites, feet, trunk, legq
 
+    @cached_property
+    def dof_parents(self) -> tuple[int, ...]:
+        """Parent of each degree of freedom in the kinematic tree (-1: none), MuJoCo's
+        ``dof_parentid``: the sparsity of M, used by the tree-structured solves
+        (:func:`jaxgait.linalg.spd_solve`)."""
+        return tuple(int(p) for p in self.body.mj_model.dof_parentid)
+
     @property
     def _template(self):
         """Empty MJX data, one per float mode (see :attr:`Body.mjx_model`)."""
@@ -422,14 +429,14 @@ def step(model: Model, cfg: SimConfig, params, env: Env, s: SimState) -> SimStat
     M, qfrc_smooth = model.mass_and_forces(s.qpos, s.qvel, qfrc)
 
     # 5. implicit rows, then the forces each law allows, applied through M
-    y = implicit_row_velocities(J, a, c, M, s.qvel, qfrc_smooth, dt)
+    y = implicit_row_velocities(J, a, c, M, s.qvel, qfrc_smooth, dt, model.dof_parents)
     f_c, cstate, _ = contact_finalize(model.contact, crow, s.contact, pts[:4], y[:4], y[4:8])
     f_lim = a_lim - c_lim * y[8:]
     f_lim = jnp.where(a_lim > 0, jnp.maximum(f_lim, 0.0), jnp.minimum(f_lim, 0.0))
     f_rows = jnp.concatenate(
         [(f_c * crow.normal).sum(-1), (f_c * crow.tangent).sum(-1), f_lim]
     )  # row components of the final forces (normal and tangent are orthonormal)
-    qacc = spd_solve(M, qfrc_smooth + jnp.sum(J * f_rows[:, None], axis=0))
+    qacc = spd_solve(M, qfrc_smooth + jnp.sum(J * f_rows[:, None], axis=0), model.dof_parents)
     grf = f_c.reshape(2, 2, 2).sum(1)  # per leg (x, z)
     mg = model.mass * 9.81
 

@@ -88,3 +88,61 @@ def test_mass_and_forces_give_the_mjx_forward_acceleration(fbl_model):
         d = fbl_model._template.replace(qpos=q, qvel=v, qfrc_applied=f)
         want = mjx.forward(fbl_model.mjx_model, d).qacc
         np.testing.assert_allclose(np.asarray(spd_solve(M, smooth)), np.asarray(want), atol=1e-9)
+
+
+def _tree_pattern(parents):
+    """Boolean (n, n): i == j or one of the two is an ancestor of the other."""
+    n = len(parents)
+    pat = np.eye(n, dtype=bool)
+    for d in range(n):
+        p = parents[d]
+        while p >= 0:
+            pat[d, p] = pat[p, d] = True
+            p = parents[p]
+    return pat
+
+
+@settings(max_examples=25, deadline=None)
+@given(data=st.data(), n=st.integers(1, 10), seed=st.integers(0, 2**31 - 1))
+def test_tree_solve_matches_numpy_and_reads_only_the_tree(data, n, seed):
+    """SPD matrices with the sparsity of a random kinematic tree (sums of outer products of
+    vectors on one chain, as M and J^T C J): the tree-structured solve equals the dense one,
+    and entries outside the tree's pattern are never read."""
+    parents = tuple(data.draw(st.integers(-1, i - 1)) for i in range(n))
+    rng = np.random.default_rng(seed)
+    pat = _tree_pattern(parents)
+    a = np.eye(n)
+    for d in range(n):  # a vector on the chain from d to its root
+        chain = pat[d] & (np.arange(n) <= d)
+        u = rng.normal(size=n) * chain
+        a += np.outer(u, u) * rng.uniform(0.1, 10.0)
+    assert np.all(a[~pat] == 0)
+    b = rng.normal(size=(n, 2))
+    x = np.asarray(spd_solve(jnp.asarray(a), jnp.asarray(b), parents))
+    np.testing.assert_allclose(x, np.linalg.solve(a, b), rtol=1e-8, atol=1e-10)
+    garbage = np.where(pat, a, rng.normal(size=(n, n)) * 1e3)
+    np.testing.assert_array_equal(
+        np.asarray(spd_solve(jnp.asarray(garbage), jnp.asarray(b), parents)), x
+    )
+
+
+def test_tree_solve_rejects_bad_trees():
+    with pytest.raises(ValueError, match="parents"):
+        spd_solve(jnp.eye(3), jnp.ones(3), (-1, 0))
+    with pytest.raises(ValueError, match="parents"):
+        spd_solve(jnp.eye(3), jnp.ones(3), (-1, 2, 0))
+
+
+def test_step_systems_have_the_tree_sparsity(fbl_model):
+    """M from MJX and the contact rows' J^T J couple only dofs on one chain of the body's
+    tree, so the step may use the tree-structured solve."""
+    pat = _tree_pattern(fbl_model.dof_parents)
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        q = jnp.asarray(rng.normal(size=9) * 0.5).at[1].set(1.0)
+        M, _ = fbl_model.mass_and_forces(q, jnp.zeros(9), jnp.zeros(9))
+        assert np.all(np.asarray(M)[~pat] == 0)
+        _, jac = fbl_model.points_jacobian(q, jnp.zeros(()))
+        for p in range(4):  # heel and ball of each foot, both directions
+            J = np.asarray(jac[p])
+            assert np.all((J.T @ J)[~pat] == 0)
