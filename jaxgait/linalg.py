@@ -98,6 +98,12 @@ def spd_solve(a: jax.Array, b: jax.Array, parents: tuple[int, ...] | None = None
                     if nz[i][k] and nz[j][k]:
                         s = s - L[i, k] * L[j, k]
                 L[i, j] = s * inv
+    # the factor goes through one stacked array before the substitutions: fused straight
+    # into them, XLA's CPU code rounded differently with the number of host devices, and
+    # results must not depend on the sharding (tests/test_objective.py)
+    zero = jnp.zeros((), a.dtype)
+    Lm = jnp.stack([jnp.stack([L.get((i, j), zero) for j in range(n)]) for i in range(n)])
+    L = {k: Lm[k] for k in L}
     inv = [1.0 / L[i, i] for i in range(n)]
     y = [None] * n
     for i in range(n):  # L y = P b

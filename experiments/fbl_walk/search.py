@@ -8,13 +8,8 @@ maximises a walking score on flat ground:
 
 with d the distance walked (centre of mass) before a fall or the end of the rollout,
 C_angles the thesis joint-angle similarity (eq. 2.51) and E/d the metabolic energy per metre.
-The shipped preset was made in two runs (from the repository root):
-
-    python experiments/fbl_walk/search.py --objective walk --generations 40 --duration 12 \
-        --out experiments/fbl_walk/run1
-    python experiments/fbl_walk/search.py --objective refine \
-        --init experiments/fbl_walk/run1/best.json \
-        --sigma 0.05 --duration 20 --out experiments/fbl_walk/run2
+The runs that made the shipped preset, with their commands, are listed in
+``experiments/fbl_walk/README.md``.
 
 Writes ``best.json`` (a preset) and ``history.csv`` into ``--out`` after every generation.
 """
