@@ -330,6 +330,13 @@ def _replace(base: Experiment, overrides: Mapping) -> Experiment:
 
 _V = (("v_desired", 1.3),)
 _ROBUST = (("distance", None), ("trunk", 10.0), ("speed", None), ("angles", None), ("cot", None))
+_EXP2_STAGES = (("distance", None), ("speed", None), ("steplengths", None), ("energy", None))
+_EXP3_STAGES = _EXP2_STAGES[:3] + (("angles", None), ("energy", None))
+# shared settings of several experiments (keyword groups of ``Experiment``)
+_FBLPLUS = {"model": "fblplus", "init": "fblplus_walk"}
+_RUNNING = {"targets": (("v_desired", 2.5),), "duration": 30.0, "v0": 2.5}
+_ROBUST_RUN = {"stages": _ROBUST, "d_lim": 120.0, "duration": 120.0, "worst_of_k": 5}
+_CMAES = {"optimiser": "cmaes", "optimiser_options": (("sigma_init", 0.1),)}
 
 
 def _e(**kw) -> Experiment:
@@ -347,20 +354,14 @@ EXPERIMENTS: dict[str, Experiment] = {
         _e(
             name="exp2",
             description="Table 3.1 exp 2: flat, FBL, stage PSO (d, C_speed, C_steplengths, -E)",
-            stages=(("distance", None), ("speed", None), ("steplengths", None), ("energy", None)),
+            stages=_EXP2_STAGES,
         ),
         _e(
             name="exp3",
             description=(
                 "Table 3.1 exp 3: flat, FBL, stage PSO (d, C_speed, C_steplengths, C_angles, -E)"
             ),
-            stages=(
-                ("distance", None),
-                ("speed", None),
-                ("steplengths", None),
-                ("angles", None),
-                ("energy", None),
-            ),
+            stages=_EXP3_STAGES,
         ),
         _e(
             name="exp4",
@@ -377,87 +378,56 @@ EXPERIMENTS: dict[str, Experiment] = {
         _e(
             name="exp5",
             description="thesis 3.3.1 exp 5: FBL+ running on flat ground, exp2 stages, v* 2.5 m/s",
-            model="fblplus",
-            init="fblplus_walk",
-            stages=(("distance", None), ("speed", None), ("steplengths", None), ("energy", None)),
-            targets=(("v_desired", 2.5),),
-            duration=30.0,
-            v0=2.5,
+            stages=_EXP2_STAGES,
+            **_FBLPLUS,
+            **_RUNNING,
         ),
         _e(
             name="exp5_table",
             description="Table 3.1 exp 5 as printed: FBL+ on env 2 (one push), robust stages",
-            model="fblplus",
-            init="fblplus_walk",
             env="push",
             stages=_ROBUST,
-            targets=(("v_desired", 2.5),),
-            duration=30.0,
-            v0=2.5,
+            **_FBLPLUS,
+            **_RUNNING,
         ),
         _e(
             name="exp6a",
             description="Table 3.1 exp 6a: random pushes, FBL, robust stages, worst of 5",
             env="random_push",
-            stages=_ROBUST,
-            d_lim=120.0,
-            duration=120.0,
-            worst_of_k=5,
+            **_ROBUST_RUN,
         ),
         _e(
             name="exp6b",
             description="Table 3.1 exp 6b: random pushes, FBL+, robust stages, worst of 5",
-            model="fblplus",
-            init="fblplus_walk",
             env="random_push",
-            stages=_ROBUST,
-            d_lim=120.0,
-            duration=120.0,
-            worst_of_k=5,
+            **_FBLPLUS,
+            **_ROBUST_RUN,
         ),
         _e(
             name="exp7a",
             description="Table 3.1 exp 7a: wavy ground, FBL, robust stages, worst of 5",
             env="wavy",
-            stages=_ROBUST,
-            d_lim=120.0,
-            duration=120.0,
-            worst_of_k=5,
+            **_ROBUST_RUN,
         ),
         _e(
             name="exp7b",
             description="Table 3.1 exp 7b: wavy ground, FBL+, robust stages, worst of 5",
-            model="fblplus",
-            init="fblplus_walk",
             env="wavy",
-            stages=_ROBUST,
-            d_lim=120.0,
-            duration=120.0,
-            worst_of_k=5,
+            **_FBLPLUS,
+            **_ROBUST_RUN,
         ),
         _e(
             name="exp3_cmaes",
             description="exp3 with CMA-ES (stage fitness as a rank key), sigma 0.1 of the ranges",
-            optimiser="cmaes",
-            optimiser_options=(("sigma_init", 0.1),),
-            stages=(
-                ("distance", None),
-                ("speed", None),
-                ("steplengths", None),
-                ("angles", None),
-                ("energy", None),
-            ),
+            stages=_EXP3_STAGES,
+            **_CMAES,
         ),
         _e(
             name="exp7a_cmaes",
             description="exp7a with CMA-ES (stage fitness as a rank key), sigma 0.1 of the ranges",
-            optimiser="cmaes",
-            optimiser_options=(("sigma_init", 0.1),),
             env="wavy",
-            stages=_ROBUST,
-            d_lim=120.0,
-            duration=120.0,
-            worst_of_k=5,
+            **_CMAES,
+            **_ROBUST_RUN,
         ),
         _e(
             name="quickstart",

@@ -99,9 +99,30 @@ def _member(tree, i):
     return jax.tree_util.tree_map(lambda a: a[i], tree)
 
 
-def _steady_walk(sim, duration=20.0, u0=WALK_U0):
-    """Walk from Appendix E for ``duration`` s; returns (state, log)."""
-    return simulate(TagaParams(u0=u0), duration, sim=sim, state=sim.init(event_capacity=256))
+def _steady_walk(sim, duration=20.0, u0=WALK_U0, state=None):
+    """Walk from Appendix E (or ``state``) for ``duration`` s; returns (state, log)."""
+    if state is None:
+        state = sim.init(event_capacity=256)
+    return simulate(TagaParams(u0=u0), duration, sim=sim, state=state)
+
+
+def _measured_walk(sim, duration=20.0, u0=WALK_U0, state=None):
+    """:func:`_steady_walk` and its gait measures; returns (state, log, measures)."""
+    st, log = _steady_walk(sim, duration, u0, state)
+    return st, log, measures.gait_measures(log, st.events, st)
+
+
+def _cycle_panels(pos, cyc, panels, title, path):
+    """Stick figures of one gait cycle ``cyc`` (log indices), split into two panels by
+    ``panels`` ((mask over the log, name), ...), every second sample."""
+    fig = plots.figure(10, 3.5)
+    for k, (sel, name) in enumerate(panels):
+        ax = fig.add_subplot(1, len(panels), k + 1)
+        idx = cyc[sel[cyc]][::2]
+        if len(idx):
+            plots.stick_figure(ax, pos, idx, lw=0.7)
+        ax.set_title(f"{title}: {name} (every 0.02 s)", fontsize=9)
+    plots.save(fig, path)
 
 
 def _gait_class(m: dict) -> str:
@@ -137,8 +158,7 @@ def fig5(out: Path, quick: bool = False) -> dict:
     """Walking limit cycle from Appendix E (Fig. 5) and the running figure (Fig. 9)."""
     sim = default_sim()
     dur = 12.0 if quick else 20.0
-    st, log = _steady_walk(sim, dur)
-    m = measures.gait_measures(log, st.events, st)
+    st, log, m = _measured_walk(sim, dur)
     td = measures.touchdowns(st.events)
     t = np.asarray(log.t)
     pos = plots.joint_positions(sim.tb, log.qpos)
@@ -159,14 +179,8 @@ def fig5(out: Path, quick: bool = False) -> dict:
 
     cyc = _step_indices(log, td, dur - 3.0)
     both = np.asarray(log.contact)[:, 0] & np.asarray(log.contact)[:, 1]
-    fig = plots.figure(10, 3.5)
-    for k, (sel, name) in enumerate(((both, "double support"), (~both, "single support"))):
-        ax = fig.add_subplot(1, 2, k + 1)
-        idx = cyc[sel[cyc]][::2]
-        if len(idx):
-            plots.stick_figure(ax, pos, idx, lw=0.7)
-        ax.set_title(f"Fig. 5B: {name} (every 0.02 s)", fontsize=9)
-    plots.save(fig, out / "fig5b_walk_cycle.png")
+    panels = ((both, "double support"), (~both, "single support"))
+    _cycle_panels(pos, cyc, panels, "Fig. 5B", out / "fig5b_walk_cycle.png")
 
     q, dq = np.asarray(log.qpos), np.asarray(log.qvel)
     fig = plots.figure(6, 5)
@@ -183,42 +197,27 @@ def fig5(out: Path, quick: bool = False) -> dict:
     # Newton-Euler equations integrated with RK4
     checks = {}
     if not quick:
-        sim2 = default_sim(0.00025)
-        st2, log2 = simulate(
-            TagaParams(u0=WALK_U0), dur, sim=sim2, state=sim2.init(event_capacity=256)
-        )
-        checks["dt_0.25ms"] = measures.gait_measures(log2, st2.events, st2)
+        checks["dt_0.25ms"] = _measured_walk(default_sim(0.00025), dur)[2]
         checks["paper_equations_rk4_0.5ms"] = _reference_walk(dur)
-        sim3 = default_sim(neural_integrator="rk4")
-        st3, log3 = simulate(
-            TagaParams(u0=WALK_U0), dur, sim=sim3, state=sim3.init(event_capacity=256)
-        )
-        checks["neural_rk4"] = measures.gait_measures(log3, st3.events, st3)
+        checks["neural_rk4"] = _measured_walk(default_sim(neural_integrator="rk4"), dur)[2]
 
     # alternative readings of the text, each run from Appendix E at u0 = 5.5
     readings = {}
     if not quick:
-        sim4 = default_sim(knee_stop="step")
-        st4, log4 = simulate(
-            TagaParams(u0=WALK_U0), dur, sim=sim4, state=sim4.init(event_capacity=256)
-        )
-        readings["knee_stop_step_as_printed"] = measures.gait_measures(log4, st4.events, st4)
+        readings["knee_stop_step_as_printed"] = _measured_walk(default_sim(knee_stop="step"), dur)[
+            2
+        ]
         s0 = sim.init(event_capacity=256)
         p0 = TagaParams(u0=WALK_U0).as_floats()
         th = sim.tb.angles(s0.data.qpos)
         feed0 = network.feedback(th, jnp.zeros(2), jnp.zeros(2), p0.a)  # no contact at t = 0
         wm0 = network.weight_matrix(p0.w_fe, p0.w_rl, p0.w_hka)
         s0 = s0.replace(neural=network.equilibrium(wm0, p0.beta, p0.u0, feed0))
-        st5, log5 = simulate(TagaParams(u0=WALK_U0), dur, sim=sim, state=s0)
-        readings["neurons_start_at_equilibrium"] = measures.gait_measures(log5, st5.events, st5)
+        readings["neurons_start_at_equilibrium"] = _measured_walk(sim, dur, state=s0)[2]
 
     # Fig. 9: running
-    st_r, log_r = simulate(TagaParams(u0=RUN_U0), dur, sim=sim, state=sim.init(event_capacity=256))
-    m_run = measures.gait_measures(log_r, st_r.events, st_r)
-    st_p, log_p = simulate(
-        TagaParams(u0=PAPER_RUN_U0), dur, sim=sim, state=sim.init(event_capacity=256)
-    )
-    m_paper_u0 = measures.gait_measures(log_p, st_p.events, st_p)
+    st_r, log_r, m_run = _measured_walk(sim, dur, RUN_U0)
+    m_paper_u0 = _measured_walk(sim, dur, PAPER_RUN_U0)[2]
     pos_r = plots.joint_positions(sim.tb, log_r.qpos)
     tr_ = np.asarray(log_r.t)
     fig = plots.figure(14, 2.8)
@@ -229,14 +228,8 @@ def fig5(out: Path, quick: bool = False) -> dict:
     td_r = measures.touchdowns(st_r.events)
     cyc = _step_indices(log_r, td_r, dur - 3.0)
     none = ~(np.asarray(log_r.contact)[:, 0] | np.asarray(log_r.contact)[:, 1])
-    fig = plots.figure(10, 3.5)
-    for k, (sel, name) in enumerate(((none, "flight"), (~none, "single support"))):
-        ax = fig.add_subplot(1, 2, k + 1)
-        idx = cyc[sel[cyc]][::2]
-        if len(idx):
-            plots.stick_figure(ax, pos_r, idx, lw=0.7)
-        ax.set_title(f"Fig. 9B: {name} (every 0.02 s)", fontsize=9)
-    plots.save(fig, out / "fig9b_run_cycle.png")
+    panels = ((none, "flight"), (~none, "single support"))
+    _cycle_panels(pos_r, cyc, panels, "Fig. 9B", out / "fig9b_run_cycle.png")
 
     return _write(
         out,
@@ -329,7 +322,7 @@ def fig6(out: Path, quick: bool = False) -> dict:
         return float(np.mean(lag))
 
     # Fig. 10: running
-    st_r, log_r = simulate(TagaParams(u0=RUN_U0), dur, sim=sim, state=sim.init(event_capacity=256))
+    st_r, log_r = _steady_walk(sim, dur, RUN_U0)
     tr, ur = np.asarray(log_r.t), np.asarray(log_r.u)
     wr = tr >= dur - 3.0
     fig = plots.figure(8, 10)
@@ -543,7 +536,7 @@ def ground(out: Path, quick: bool = False) -> dict:
     bg = np.concatenate([np.full(len(kgs), 1e3), bgs])
     nk = len(kgs)
     st_e = sim.init(event_capacity=256)
-    st_s, _ = simulate(TagaParams(u0=WALK_U0), dur, sim=sim, state=sim.init(event_capacity=256))
+    st_s, _ = _steady_walk(sim, dur)
     st_s = st_s.replace(events=st_e.events)
     result = {}
     for start, st0 in (("appendix_e", st_e), ("steady_walk", st_s)):
@@ -702,7 +695,7 @@ def fig11(out: Path, quick: bool = False) -> dict:
         coexist = [lo, hi] if lo <= hi else None
 
     # where does running end? from steady running (taga_run after 20 s) set u0 higher
-    st_r, _ = simulate(TagaParams(u0=RUN_U0), 20.0, sim=sim, state=sim.init(event_capacity=256))
+    st_r, _ = _steady_walk(sim, 20.0, RUN_U0)
     st_r = st_r.replace(events=sim.init(event_capacity=256).events)
     hi_u0 = (
         np.array([8.0, 8.1, 8.2, 8.3, 8.4])
