@@ -34,19 +34,79 @@ def _peak_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def run_case(kind: str, batch: int, steps: int, repeats: int) -> dict:
+def _setup(batch: int):
+    """(model, cfg, params, env, initial states) of ``batch`` FBL walkers on flat ground that
+    never stop (no fall or time criterion ends the benchmark's rollouts)."""
     import jax
     import jax.numpy as jnp
-    import numpy as np
 
     from jaxgait import envs, sim
 
     model = sim.make_model()
-    dt = model.dt
+    cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
+    keys = jax.random.split(jax.random.PRNGKey(0), batch)
+    env = envs.make_env_batch("flat", keys)
+    params = jnp.broadcast_to(jnp.asarray(model.table.init, jnp.float32), (batch, model.table.size))
+    s0 = jax.vmap(lambda p, e: sim.initial_state(model, p, e, cfg))(params, env)
+    return model, cfg, params, env, s0
+
+
+def _full_program(model, cfg, steps: int):
+    """``steps`` full steps of a batch: (states, params, envs) -> states.  Parameters and
+    environments are arguments, not constants folded into the program."""
+    import jax
+
+    from jaxgait import sim
+
+    def run(a):
+        s, p, e = a
+        f = jax.vmap(lambda p, e, s: sim.step(model, cfg, p, e, s))
+        return jax.lax.scan(lambda s, _: (f(p, e, s), None), s, None, length=steps)[0]
+
+    return run
+
+
+def _mjx_program(model, fn, steps: int):
+    """``steps`` calls of an MJX function (``mjx.step``, ``mjx.forward``) on a batch of data."""
+    import jax
+
+    def run(d):
+        f = jax.vmap(lambda d: fn(model.mjx_model, d))
+        return jax.lax.scan(lambda d, _: (f(d), None), d, None, length=steps)[0]
+
+    return run
+
+
+def _mjx_data(model, s0):
+    import jax
+
+    return jax.vmap(lambda q, v: model._template.replace(qpos=q, qvel=v))(s0.qpos, s0.qvel)
+
+
+def _best_seconds(run, arg, repeats: int) -> float:
+    """Shortest of ``repeats`` timed calls of ``run(arg)`` (blocking until ready)."""
+    import jax
+
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(run(arg))
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def run_case(kind: str, batch: int, steps: int, repeats: int) -> dict:
+    import jax
+    import numpy as np
+
+    from jaxgait import sim
+
+    extra = {}
     if kind == "c":
         import mujoco
         from mujoco import rollout
 
+        model = sim.make_model()
         m = model.body.mj_model
         d = mujoco.MjData(m)
         nthread = os.cpu_count() or 1
@@ -56,65 +116,32 @@ def run_case(kind: str, batch: int, steps: int, repeats: int) -> dict:
         d.qvel[0] = 1.3
         mujoco.mj_getState(m, d, state[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
         state[:] = state[0]
-        rollout.rollout(m, datas, state, nstep=steps)  # warm-up (thread pool)
-        best = np.inf
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            rollout.rollout(m, datas, state, nstep=steps)
-            best = min(best, time.perf_counter() - t0)
-        return {
-            "kind": kind,
-            "batch": batch,
-            "seconds": best,
-            "steps": steps,
-            "env_steps_per_s": batch * steps / best,
-            "rtf": batch * steps * dt / best,
-            "peak_mib": _peak_mib(),
-            "threads": nthread,
-        }
-
-    cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
-    keys = jax.random.split(jax.random.PRNGKey(0), batch)
-    env = envs.make_env_batch("flat", keys)
-    params = jnp.broadcast_to(jnp.asarray(model.table.init, jnp.float32), (batch, model.table.size))
-    s0 = jax.vmap(lambda p, e: sim.initial_state(model, p, e, cfg))(params, env)
-    if kind == "full":
-        # parameters and environments are arguments, not constants folded into the program
-        def run(a):
-            s, p, e = a
-            f = jax.vmap(lambda p, e, s: sim.step(model, cfg, p, e, s))
-            return jax.lax.scan(lambda s, _: (f(p, e, s), None), s, None, length=steps)[0]
-
-        arg = (s0, params, env)
-    elif kind == "mjx":
-        from mujoco import mjx
-
-        mx = model.mjx_model
-        arg = jax.vmap(lambda q, v: model._template.replace(qpos=q, qvel=v))(s0.qpos, s0.qvel)
-
-        def run(d):
-            f = jax.vmap(lambda d: mjx.step(mx, d))
-            return jax.lax.scan(lambda d, _: (f(d), None), d, None, length=steps)[0]
+        run, arg = (lambda st: rollout.rollout(m, datas, st, nstep=steps)), state
+        extra["threads"] = nthread
     else:
-        raise ValueError(kind)
-    run = jax.jit(run)
+        model, cfg, params, env, s0 = _setup(batch)
+        if kind == "full":
+            run, arg = _full_program(model, cfg, steps), (s0, params, env)
+        elif kind == "mjx":
+            from mujoco import mjx
+
+            run, arg = _mjx_program(model, mjx.step, steps), _mjx_data(model, s0)
+        else:
+            raise ValueError(kind)
+        run = jax.jit(run)
     t0 = time.perf_counter()
-    jax.block_until_ready(run(arg))
-    compile_s = time.perf_counter() - t0
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(run(arg))
-        best = min(best, time.perf_counter() - t0)
+    jax.block_until_ready(run(arg))  # compiles (jax) or warms up the thread pool (C)
+    extra["compile_s" if kind != "c" else "warmup_s"] = time.perf_counter() - t0
+    best = _best_seconds(run, arg, repeats)
     return {
         "kind": kind,
         "batch": batch,
         "seconds": best,
         "steps": steps,
         "env_steps_per_s": batch * steps / best,
-        "rtf": batch * steps * dt / best,
+        "rtf": batch * steps * model.dt / best,
         "peak_mib": _peak_mib(),
-        "compile_s": compile_s,
+        **extra,
     }
 
 
@@ -142,22 +169,12 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
     import jax.numpy as jnp
     from mujoco import mjx
 
-    from jaxgait import energy, envs, muscle, sim
+    from jaxgait import energy, muscle
 
-    model = sim.make_model()
-    cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
-    keys = jax.random.split(jax.random.PRNGKey(0), batch)
-    env = envs.make_env_batch("flat", keys)
-    params = jnp.broadcast_to(jnp.asarray(model.table.init, jnp.float32), (batch, model.table.size))
-    s0 = jax.vmap(lambda p, e: sim.initial_state(model, p, e, cfg))(params, env)
+    model, cfg, params, env, s0 = _setup(batch)
 
     def scan_step(m, c=cfg):
-        def run(a):
-            s, p, e = a
-            f = jax.vmap(lambda p, e, s: sim.step(m, c, p, e, s))
-            return jax.lax.scan(lambda s, _: (f(p, e, s), None), s, None, length=steps)[0]
-
-        return run
+        return _full_program(m, c, steps)
 
     def const_law(p, s):
         return jnp.full(s.shape[:-1] + (7,), 0.05, s.dtype)  # one row per (delayed) leg
@@ -188,17 +205,9 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
         full,
         (energy, "metabolic_rate", lambda table, stim, *a: jnp.zeros_like(stim)),
     )
-    d0 = jax.vmap(lambda q, v: model._template.replace(qpos=q, qvel=v))(s0.qpos, s0.qvel)
-
-    def mjx_only(fn):
-        def run(d):
-            f = jax.vmap(lambda d: fn(model.mjx_model, d))
-            return jax.lax.scan(lambda d, _: (f(d), None), d, None, length=steps)[0]
-
-        return run
-
-    add("mjx.step alone", mjx_only(mjx.step), d0)
-    add("mjx.forward alone", mjx_only(mjx.forward), d0)
+    d0 = _mjx_data(model, s0)
+    add("mjx.step alone", _mjx_program(model, mjx.step, steps), d0)
+    add("mjx.forward alone", _mjx_program(model, mjx.forward, steps), d0)
 
     def mass_and_forces_only(a):
         def body(c, _):
@@ -210,34 +219,26 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
 
     add("MJX M and bias forces alone (step's part)", mass_and_forces_only, (s0.qpos, s0.qvel))
 
-    def muscles_only(ms):
-        lm = ms.l_ce + jnp.asarray(model.muscles.l_slack)
+    def muscles_alone(step_fn):
+        def run(ms):
+            lm = ms.l_ce + jnp.asarray(model.muscles.l_slack)
 
-        def one(m):
-            return muscle.muscle_step(model.muscles, m, m.act * 0 + 0.3, lm[0], model.dt)[0]
+            def one(m):
+                return step_fn(model.muscles, m, m.act * 0 + 0.3, lm[0], model.dt)[0]
 
-        f = jax.vmap(one)
-        return jax.lax.scan(lambda m, _: (f(m), None), ms, None, length=steps)[0]
+            f = jax.vmap(one)
+            return jax.lax.scan(lambda m, _: (f(m), None), ms, None, length=steps)[0]
 
-    def muscles_explicit(ms):
-        lm = ms.l_ce + jnp.asarray(model.muscles.l_slack)
+        return run
 
-        def one(m):
-            return explicit(model.muscles, m, m.act * 0 + 0.3, lm[0], model.dt)[0]
-
-        f = jax.vmap(one)
-        return jax.lax.scan(lambda m, _: (f(m), None), ms, None, length=steps)[0]
-
-    add("muscle_step alone (implicit)", muscles_only, s0.muscle)
-    add("muscle_step alone (explicit)", muscles_explicit, s0.muscle)
+    add("muscle_step alone (implicit)", muscles_alone(muscle.muscle_step), s0.muscle)
+    add("muscle_step alone (explicit)", muscles_alone(explicit), s0.muscle)
     for f, a in compiled.values():
         jax.block_until_ready(f(a))
     best = {k: float("inf") for k in compiled}
-    for _ in range(repeats):
+    for _ in range(repeats):  # interleaved: one timed call of every variant per round
         for k, (f, a) in compiled.items():
-            t0 = time.perf_counter()
-            jax.block_until_ready(f(a))
-            best[k] = min(best[k], time.perf_counter() - t0)
+            best[k] = min(best[k], _best_seconds(f, a, 1))
     full = best["full step"]
     rows = []
     for k, t in best.items():

@@ -27,21 +27,7 @@ def cholesky(a: jax.Array) -> jax.Array:
     n = a.shape[-1]
     if a.shape != (n, n):
         raise ValueError(f"cholesky expects a square matrix, got shape {a.shape}")
-    L = [[None] * n for _ in range(n)]
-    for j in range(n):
-        s = a[j, j]
-        for k in range(j):
-            s = s - L[j][k] * L[j][k]
-        d = jnp.sqrt(s)
-        L[j][j] = d
-        inv = 1.0 / d
-        for i in range(j + 1, n):
-            s = a[i, j]
-            for k in range(j):
-                s = s - L[i][k] * L[j][k]
-            L[i][j] = s * inv
-    zero = jnp.zeros((), a.dtype)
-    return jnp.stack([jnp.stack([L[i][j] if j <= i else zero for j in range(n)]) for i in range(n)])
+    return _factor(a, *_dense(n))
 
 
 def cho_solve(L: jax.Array, b: jax.Array) -> jax.Array:
@@ -49,20 +35,7 @@ def cho_solve(L: jax.Array, b: jax.Array) -> jax.Array:
     n = L.shape[-1]
     if b.shape[0] != n:
         raise ValueError(f"cho_solve: right-hand side has {b.shape[0]} rows, matrix has {n}")
-    inv = [1.0 / L[i, i] for i in range(n)]
-    y = [None] * n
-    for i in range(n):  # L y = b
-        s = b[i]
-        for k in range(i):
-            s = s - L[i, k] * y[k]
-        y[i] = s * inv[i]
-    x = [None] * n
-    for i in reversed(range(n)):  # L^T x = y
-        s = y[i]
-        for k in range(i + 1, n):
-            s = s - L[k, i] * x[k]
-        x[i] = s * inv[i]
-    return jnp.stack(x)
+    return _substitute(L, b, *_dense(n))
 
 
 def spd_solve(a: jax.Array, b: jax.Array, parents: tuple[int, ...] | None = None) -> jax.Array:
@@ -79,10 +52,17 @@ def spd_solve(a: jax.Array, b: jax.Array, parents: tuple[int, ...] | None = None
     n = a.shape[-1]
     if a.shape != (n, n) or b.shape[0] != n:
         raise ValueError(f"spd_solve: matrix of shape {a.shape}, right-hand side {b.shape}")
-    if parents is None:
-        return cho_solve(cholesky(a), b)
-    order, nz = _tree_elimination(tuple(parents), n)
-    # Cholesky of the permuted matrix P a P^T (leaves first), structural zeros skipped
+    pattern = _dense(n) if parents is None else _tree_elimination(tuple(parents), n)
+    # the factor goes through one stacked array before the substitutions: fused straight
+    # into them, XLA's CPU code rounded differently with the number of host devices, and
+    # results must not depend on the sharding (tests/test_objective.py)
+    return _substitute(_factor(a, *pattern), b, *pattern)
+
+
+def _factor(a, order, nz) -> jax.Array:
+    """Cholesky factor (n, n) of the permuted matrix P a P^T (row i of P a P^T is row
+    ``order[i]`` of a), computing only the entries nz[i][j] (i > j) and the diagonal."""
+    n = len(order)
     L = {}
     for j in range(n):
         s = a[order[j], order[j]]
@@ -98,12 +78,13 @@ def spd_solve(a: jax.Array, b: jax.Array, parents: tuple[int, ...] | None = None
                     if nz[i][k] and nz[j][k]:
                         s = s - L[i, k] * L[j, k]
                 L[i, j] = s * inv
-    # the factor goes through one stacked array before the substitutions: fused straight
-    # into them, XLA's CPU code rounded differently with the number of host devices, and
-    # results must not depend on the sharding (tests/test_objective.py)
     zero = jnp.zeros((), a.dtype)
-    Lm = jnp.stack([jnp.stack([L.get((i, j), zero) for j in range(n)]) for i in range(n)])
-    L = {k: Lm[k] for k in L}
+    return jnp.stack([jnp.stack([L.get((i, j), zero) for j in range(n)]) for i in range(n)])
+
+
+def _substitute(L, b, order, nz) -> jax.Array:
+    """x with a x = b from the factor L of P a P^T (:func:`_factor`)."""
+    n = len(order)
     inv = [1.0 / L[i, i] for i in range(n)]
     y = [None] * n
     for i in range(n):  # L y = P b
@@ -123,6 +104,12 @@ def spd_solve(a: jax.Array, b: jax.Array, parents: tuple[int, ...] | None = None
     for i in range(n):
         out[order[i]] = x[i]
     return jnp.stack(out)
+
+
+@functools.cache
+def _dense(n: int):
+    """(order, nz) of a dense matrix: natural order, every entry below the diagonal."""
+    return tuple(range(n)), tuple(tuple(k < i for k in range(n)) for i in range(n))
 
 
 @functools.cache

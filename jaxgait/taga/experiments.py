@@ -99,16 +99,17 @@ def _member(tree, i):
     return jax.tree_util.tree_map(lambda a: a[i], tree)
 
 
-def _steady_walk(sim, duration=20.0, u0=WALK_U0, state=None):
-    """Walk from Appendix E (or ``state``) for ``duration`` s; returns (state, log)."""
+def _gait(sim, duration=20.0, u0=WALK_U0, state=None):
+    """Walk (or run, by ``u0``) from Appendix E (or ``state``) for ``duration`` s; returns
+    (state, log)."""
     if state is None:
         state = sim.init(event_capacity=256)
     return simulate(TagaParams(u0=u0), duration, sim=sim, state=state)
 
 
-def _measured_walk(sim, duration=20.0, u0=WALK_U0, state=None):
-    """:func:`_steady_walk` and its gait measures; returns (state, log, measures)."""
-    st, log = _steady_walk(sim, duration, u0, state)
+def _measured_gait(sim, duration=20.0, u0=WALK_U0, state=None):
+    """:func:`_gait` and its gait measures; returns (state, log, measures)."""
+    st, log = _gait(sim, duration, u0, state)
     return st, log, measures.gait_measures(log, st.events, st)
 
 
@@ -158,7 +159,7 @@ def fig5(out: Path, quick: bool = False) -> dict:
     """Walking limit cycle from Appendix E (Fig. 5) and the running figure (Fig. 9)."""
     sim = default_sim()
     dur = 12.0 if quick else 20.0
-    st, log, m = _measured_walk(sim, dur)
+    st, log, m = _measured_gait(sim, dur)
     td = measures.touchdowns(st.events)
     t = np.asarray(log.t)
     pos = plots.joint_positions(sim.tb, log.qpos)
@@ -197,27 +198,26 @@ def fig5(out: Path, quick: bool = False) -> dict:
     # Newton-Euler equations integrated with RK4
     checks = {}
     if not quick:
-        checks["dt_0.25ms"] = _measured_walk(default_sim(0.00025), dur)[2]
+        checks["dt_0.25ms"] = _measured_gait(default_sim(0.00025), dur)[2]
         checks["paper_equations_rk4_0.5ms"] = _reference_walk(dur)
-        checks["neural_rk4"] = _measured_walk(default_sim(neural_integrator="rk4"), dur)[2]
+        checks["neural_rk4"] = _measured_gait(default_sim(neural_integrator="rk4"), dur)[2]
 
     # alternative readings of the text, each run from Appendix E at u0 = 5.5
     readings = {}
     if not quick:
-        readings["knee_stop_step_as_printed"] = _measured_walk(default_sim(knee_stop="step"), dur)[
-            2
-        ]
+        knee_step = default_sim(knee_stop="step")
+        readings["knee_stop_step_as_printed"] = _measured_gait(knee_step, dur)[2]
         s0 = sim.init(event_capacity=256)
         p0 = TagaParams(u0=WALK_U0).as_floats()
         th = sim.tb.angles(s0.data.qpos)
         feed0 = network.feedback(th, jnp.zeros(2), jnp.zeros(2), p0.a)  # no contact at t = 0
         wm0 = network.weight_matrix(p0.w_fe, p0.w_rl, p0.w_hka)
         s0 = s0.replace(neural=network.equilibrium(wm0, p0.beta, p0.u0, feed0))
-        readings["neurons_start_at_equilibrium"] = _measured_walk(sim, dur, state=s0)[2]
+        readings["neurons_start_at_equilibrium"] = _measured_gait(sim, dur, state=s0)[2]
 
     # Fig. 9: running
-    st_r, log_r, m_run = _measured_walk(sim, dur, RUN_U0)
-    m_paper_u0 = _measured_walk(sim, dur, PAPER_RUN_U0)[2]
+    st_r, log_r, m_run = _measured_gait(sim, dur, RUN_U0)
+    m_paper_u0 = _measured_gait(sim, dur, PAPER_RUN_U0)[2]
     pos_r = plots.joint_positions(sim.tb, log_r.qpos)
     tr_ = np.asarray(log_r.t)
     fig = plots.figure(14, 2.8)
@@ -278,7 +278,7 @@ def fig6(out: Path, quick: bool = False) -> dict:
     """Neural activity walking / running / isolated; entrained vs isolated frequency."""
     sim = default_sim()
     dur = 12.0 if quick else 20.0
-    st, log = _steady_walk(sim, dur)
+    st, log = _gait(sim, dur)
     m = measures.gait_measures(log, st.events, st)
     t, u = np.asarray(log.t), np.asarray(log.u)
     dt_log = float(t[1] - t[0])
@@ -322,7 +322,7 @@ def fig6(out: Path, quick: bool = False) -> dict:
         return float(np.mean(lag))
 
     # Fig. 10: running
-    st_r, log_r = _steady_walk(sim, dur, RUN_U0)
+    st_r, log_r = _gait(sim, dur, RUN_U0)
     tr, ur = np.asarray(log_r.t), np.asarray(log_r.u)
     wr = tr >= dur - 3.0
     fig = plots.figure(8, 10)
@@ -379,7 +379,7 @@ def fig7(out: Path, quick: bool = False) -> dict:
     sim = default_sim()
     warm = 12.0 if quick else 20.0
     after = 8.0 if quick else 15.0
-    st0, _ = _steady_walk(sim, warm)
+    st0, _ = _gait(sim, warm)
     st0 = st0.replace(events=sim.init(event_capacity=256).events)
     p = TagaParams(u0=WALK_U0)
     stb, logb = simulate(p, after, sim=sim, state=st0)
@@ -536,7 +536,7 @@ def ground(out: Path, quick: bool = False) -> dict:
     bg = np.concatenate([np.full(len(kgs), 1e3), bgs])
     nk = len(kgs)
     st_e = sim.init(event_capacity=256)
-    st_s, _ = _steady_walk(sim, dur)
+    st_s, _ = _gait(sim, dur)
     st_s = st_s.replace(events=st_e.events)
     result = {}
     for start, st0 in (("appendix_e", st_e), ("steady_walk", st_s)):
@@ -695,7 +695,7 @@ def fig11(out: Path, quick: bool = False) -> dict:
         coexist = [lo, hi] if lo <= hi else None
 
     # where does running end? from steady running (taga_run after 20 s) set u0 higher
-    st_r, _ = _steady_walk(sim, 20.0, RUN_U0)
+    st_r, _ = _gait(sim, 20.0, RUN_U0)
     st_r = st_r.replace(events=sim.init(event_capacity=256).events)
     hi_u0 = (
         np.array([8.0, 8.1, 8.2, 8.3, 8.4])
