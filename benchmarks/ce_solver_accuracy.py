@@ -1,10 +1,10 @@
 """Accuracy of the implicit CE solve per step against the exact backward-Euler root (a benchmark).
 
 Each muscle step solves l' = l_ce + h v_ce(A, l', l_mtu) for the normalised velocity v_n
-(``jaxgait.muscle.muscle_step``).  This script takes muscle states from three sources and, in
+(``jaxgait.muscles.mtu.muscle_step``).  This script takes muscle states from three sources and, in
 float64, compares the step with k = 0, 1, 2, 3 solver iterations after the first
 intersection against the root found by 100 bisections
-(``jaxgait.muscle.backward_euler_velocity``).  It prints the CE-length error of one step,
+(``jaxgait.muscles.mtu.backward_euler_velocity``).  It prints the CE-length error of one step,
 |v_n,k - v_n,root| h v_max [l_opt], as maximum and the fraction of muscle steps above 1e-6
 and 1e-5 l_opt:
 
@@ -27,9 +27,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait import envs, presets, sim
-from jaxgait import muscle as mu
-from jaxgait.muscle import GEYER7
+from jaxgait import presets, sim
+from jaxgait.muscles import mtu as mu
+from jaxgait.muscles.mtu import GEYER7
+from jaxgait.world import envs
 
 DT = 5e-4
 KS = (0, 1, 2, 3)

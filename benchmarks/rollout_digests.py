@@ -66,26 +66,23 @@ def _tree_digests(prefix: str, tree) -> dict[str, str]:
 
 
 def _api():
-    """(sim module, presets loader, envs module, fblplus lift, gradient, train, taga)."""
+    """(sim, get_model, presets, envs, lift_fbl, OFF, gradient, train, simulate, TagaParams)."""
+    from jaxgait import presets, sim
+    from jaxgait.taga import simulate
+    from jaxgait.taga.model import TagaParams
+
     try:  # layered layout
-        from jaxgait import presets
         from jaxgait.control.fblplus import OFF, lift_fbl
-        from jaxgait.models import get_model
         from jaxgait.optim import gradient
-        from jaxgait.sim import rollout as rollout_mod
-        from jaxgait.taga import simulate
-        from jaxgait.taga.model import TagaParams
         from jaxgait.train import train
         from jaxgait.world import envs
-
-        sim = rollout_mod
     except ImportError:
-        from jaxgait import envs, gradient, presets, sim
+        from jaxgait import envs, gradient
         from jaxgait.reflex_plus import OFF, lift_fbl
-        from jaxgait.taga import simulate
-        from jaxgait.taga.model import TagaParams
         from jaxgait.train import train
-
+    try:
+        from jaxgait.models import get_model
+    except ImportError:
         get_model = sim.make_model
     return sim, get_model, presets, envs, lift_fbl, OFF, gradient, train, simulate, TagaParams
 

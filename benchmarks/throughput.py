@@ -40,7 +40,8 @@ def _setup(batch: int):
     import jax
     import jax.numpy as jnp
 
-    from jaxgait import envs, sim
+    from jaxgait import sim
+    from jaxgait.world import envs
 
     model = sim.make_model()
     cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
@@ -169,7 +170,8 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
     import jax.numpy as jnp
     from mujoco import mjx
 
-    from jaxgait import energy, muscle
+    from jaxgait.muscles import energy
+    from jaxgait.muscles import mtu as muscle
 
     model, cfg, params, env, s0 = _setup(batch)
 

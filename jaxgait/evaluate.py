@@ -12,9 +12,9 @@ Command line::
 field; ``--model`` must agree with it. Without ``--json`` a readable table is printed; with
 ``--json`` exactly one JSON object (see :func:`evaluate` for its keys; non-finite numbers
 are ``null``). ``--save-trajectory`` writes the alive samples as CSV
-(:mod:`jaxgait.trajectory_io`), ``--plots`` the figures of :func:`jaxgait.plots.plot_all`,
+(:mod:`jaxgait.analysis.trajectory_io`), ``--plots`` the figures of :func:`jaxgait.analysis.plots.plot_all`,
 ``--save-scene`` an MJCF scene of the body on the environment's terrain over the walked range
-(:mod:`jaxgait.scene`; open it with ``python -m mujoco.viewer --mjcf PATH``).
+(:mod:`jaxgait.world.scene`; open it with ``python -m mujoco.viewer --mjcf PATH``).
 
 Exit codes: 0 success, 2 bad input (unknown preset or parameter, bad environment name,
 non-positive duration, unwritable output, model not available), with a message on stderr.
@@ -43,7 +43,7 @@ from jaxgait.presets import load_preset, preset_from_dict, resolve_preset
 #: 2.1.3) and Taga's oscillator biped; a name :func:`jaxgait.sim.make_model` does not know
 #: is an error.
 MODEL_CHOICES = ("fbl", "fblplus", "taga")
-#: Environment names (keys of :data:`jaxgait.envs.ENVIRONMENTS`).
+#: Environment names (keys of :data:`jaxgait.world.envs.ENVIRONMENTS`).
 ENV_CHOICES = (
     "flat",
     "slope_up",
@@ -91,11 +91,11 @@ class EvalRun:
 
     Attributes:
       report: the JSON-ready dict of :func:`evaluate`.
-      measures: :func:`jaxgait.measures.compute_measures` output (NumPy).
+      measures: :func:`jaxgait.analysis.measures.compute_measures` output (NumPy).
       trace, events, summary: the rollout record (NumPy leaves).
       final_state: the final :class:`~jaxgait.sim.SimState` (JAX arrays).
       model: the :class:`~jaxgait.sim.Model`; vec: (D,) parameters; doc: the preset document.
-      env: the :class:`~jaxgait.envs.Env`; cfg: the :class:`~jaxgait.sim.SimConfig`.
+      env: the :class:`~jaxgait.world.envs.Env`; cfg: the :class:`~jaxgait.sim.SimConfig`.
     """
 
     report: dict
@@ -148,7 +148,7 @@ def _load(preset) -> tuple[str, np.ndarray, dict, str, str]:
 
 
 def _check_inputs(env: str, duration: float, seed: int) -> None:
-    from jaxgait.envs import ENVIRONMENTS
+    from jaxgait.world.envs import ENVIRONMENTS
 
     if env not in ENVIRONMENTS:
         raise EvaluateError(f"unknown environment {env!r}; valid names: {', '.join(ENVIRONMENTS)}")
@@ -194,7 +194,7 @@ def _jit_rollout(name: str, cfg):
 def _report(
     meas: dict, *, label: str, file: str, model: str, env: str, seed: int, duration: float
 ) -> dict:
-    from jaxgait.measures import MEASURE_UNITS
+    from jaxgait.analysis.measures import MEASURE_UNITS
 
     rep = {}
     units = {}
@@ -225,7 +225,7 @@ def run(
 
     Args:
       preset: preset name, JSON path, results folder, or a preset dict.
-      env: environment name (:data:`jaxgait.envs.ENVIRONMENTS`).
+      env: environment name (:data:`jaxgait.world.envs.ENVIRONMENTS`).
       duration: maximal simulated time [s] (the run stops earlier on a fall).
       seed: environment PRNG seed (same seed, same terrain and pushes).
       model: model name; default the preset's ``model`` (must agree if given).
@@ -238,8 +238,9 @@ def run(
     """
     import jax
 
-    from jaxgait import envs, sim
-    from jaxgait.measures import compute_measures
+    from jaxgait import sim
+    from jaxgait.analysis.measures import compute_measures
+    from jaxgait.world import envs
 
     _check_inputs(env, duration, seed)
     declared, vec, doc, label, file = _load(preset)
@@ -266,7 +267,7 @@ def run(
 
 def _taga_env(env: str) -> tuple[str, float]:
     """Taga's (env, slope) for an environment name: flat ground or a constant grade."""
-    from jaxgait.envs import ENVIRONMENTS
+    from jaxgait.world.envs import ENVIRONMENTS
 
     if env == "flat":
         return "flat", 0.0
@@ -306,7 +307,7 @@ def evaluate(
 ) -> dict:
     """Simulate a preset and return its gait measures as a JSON-ready dict.
 
-    For FBL models the dict holds every scalar of :func:`jaxgait.measures.compute_measures`
+    For FBL models the dict holds every scalar of :func:`jaxgait.analysis.measures.compute_measures`
     (``distance_m``, ``duration_s``, ``fell``, ``mean_speed_mps``, ``energy_J_per_m``,
     ``cost_of_transport``, ``c_angles``, ``corr_hip``, ``corr_knee``, ``corr_ankle``,
     ``step_length_snr``, ``step_length_mean_m``, ``n_steps``, ``double_stance_fraction``,
@@ -357,7 +358,7 @@ def _parser() -> argparse.ArgumentParser:
         help="write the trajectory CSV to PATH; its columns root_x_m, root_z_m, "
         "trunk_lean_deg, hip_r_deg, knee_r_deg, ankle_r_deg, hip_l_deg, knee_l_deg, "
         "ankle_l_deg (degrees converted to radians) are the qpos of the --save-scene model, "
-        "row by row (jaxgait.scene.trajectory_qpos): set data.qpos and call mujoco.mj_forward "
+        "row by row (jaxgait.world.scene.trajectory_qpos): set data.qpos and call mujoco.mj_forward "
         "to replay",
     )
     p.add_argument(
@@ -452,7 +453,7 @@ def main(argv=None) -> int:
         return int(e.code) if isinstance(e.code, int) else 2
     out = sys.stdout
     with contextlib.redirect_stdout(sys.stderr):
-        from jaxgait import compile_cache
+        from jaxgait.core import compile_cache
 
         compile_cache.enable()
         code, text = _main(a)
@@ -496,14 +497,14 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
     if result is not None:
         try:
             if a.save_trajectory is not None:
-                from jaxgait.trajectory_io import write_trajectory_csv
+                from jaxgait.analysis.trajectory_io import write_trajectory_csv
 
                 p = write_trajectory_csv(
                     a.save_trajectory, result.trace, result.summary, result.model
                 )
                 rep["trajectory_file"] = str(p)
             if a.plots is not None:
-                from jaxgait.plots import plot_all
+                from jaxgait.analysis.plots import plot_all
 
                 paths = plot_all(
                     a.plots,
@@ -516,7 +517,7 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
                 )
                 rep["plot_files"] = {k: str(v) for k, v in paths.items()}
             if a.save_scene is not None:
-                from jaxgait.scene import write_scene
+                from jaxgait.world.scene import write_scene
 
                 x0, x1 = scene_range(result.trace)
                 p = write_scene(a.save_scene, result.env, x0, x1)  # FBL body: fbl_planar

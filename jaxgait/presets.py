@@ -1,18 +1,18 @@
 """Parameter presets: named JSON files of controller parameters, loaded and validated.
 
-A preset is a JSON object (written by :func:`jaxgait.params.save_preset`)::
+A preset is a JSON object (written by :func:`jaxgait.core.params.save_preset`)::
 
     {"model": "fbl", "table": "fbl", "description": "...", "params": {"k_bw": 1.2, ...}}
 
 * ``model``: the model family the parameters belong to (default ``"fbl"``);
-* ``table``: the :class:`~jaxgait.params.ParamTable` the names refer to (default: the model
+* ``table``: the :class:`~jaxgait.core.params.ParamTable` the names refer to (default: the model
   name);
 * ``params``: name -> value, in the units of the table (see ``ParamTable.to_table``);
 * ``partial`` (optional, default false): names missing from ``params`` take the table's
   initial values instead of being an error;
 * any other key is free metadata (description, score, provenance...).
 
-Shipped presets live in :func:`jaxgait.resources.presets_dir` (``experiments/presets`` in a
+Shipped presets live in :func:`jaxgait.core.resources.presets_dir` (``experiments/presets`` in a
 source checkout) and are referred to by file stem: ``load_preset("geyer_walk")``. Anything
 else is a path to a JSON file, or to a results folder holding ``best.json`` (as written by
 the search scripts).
@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxgait import params as params_mod
-from jaxgait.params import ParamTable
+from jaxgait.core import params as params_mod
+from jaxgait.core.params import ParamTable
 
 #: Model families whose presets are not FBL parameter tables (passed through unvalidated).
 PASS_THROUGH_MODELS = ("taga",)
@@ -51,8 +51,8 @@ class PresetError(ValueError):
 
 
 def param_tables() -> dict[str, ParamTable]:
-    """Every :class:`ParamTable` of :mod:`jaxgait.params` and :mod:`jaxgait.reflex_plus`."""
-    from jaxgait import reflex_plus
+    """Every :class:`ParamTable` of :mod:`jaxgait.core.params` and :mod:`jaxgait.control.fblplus`."""
+    from jaxgait.control import fblplus as reflex_plus
 
     mods = (params_mod, reflex_plus)
     return {v.name: v for m in mods for v in vars(m).values() if isinstance(v, ParamTable)}
@@ -64,7 +64,7 @@ def available_models() -> tuple[str, ...]:
 
 
 def _presets_dir() -> Path | None:
-    from jaxgait.resources import presets_dir
+    from jaxgait.core.resources import presets_dir
 
     try:
         return presets_dir()

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from mujoco import mjx
 
-from jaxgait.body import load_body
+from jaxgait.body.planar import load_body
 
 
 @pytest.fixture(autouse=True)
@@ -62,7 +62,7 @@ def test_rejects_non_planar_model(tmp_path, monkeypatch):
     xml = """<mujoco><worldbody><body><joint type="hinge" axis="1 0 0"/>
     <inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></worldbody></mujoco>"""
     (tmp_path / "bad.xml").write_text(xml)
-    monkeypatch.setattr("jaxgait.body.model_path", lambda name: tmp_path / "bad.xml")
+    monkeypatch.setattr("jaxgait.body.planar.model_path", lambda name: tmp_path / "bad.xml")
     with pytest.raises(ValueError, match="not \\+-y"):
         load_body("bad")
 

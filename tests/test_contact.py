@@ -5,15 +5,15 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxgait import terrain
-from jaxgait.contact import (
+from jaxgait.sim.rows import implicit_row_velocities
+from jaxgait.world import terrain
+from jaxgait.world.contact import (
     ContactParams,
     contact_finalize,
     contact_forces,
     contact_rows,
     init_contact,
 )
-from jaxgait.rows import implicit_row_velocities
 
 
 @pytest.fixture(autouse=True)

@@ -9,8 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxgait import criteria as C
-from jaxgait import measures as M
+from jaxgait.analysis import criteria as C
+from jaxgait.analysis import measures as M
 
 
 def fake_measures(**over):

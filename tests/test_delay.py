@@ -4,9 +4,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxgait import reflex
-from jaxgait.delay import delay_init, delay_step, delay_taps, steps_for
-from jaxgait.params import FBL
+from jaxgait.control import fbl as reflex
+from jaxgait.control.delay import delay_init, delay_step, delay_taps, steps_for
+from jaxgait.core.params import FBL
 
 
 @pytest.mark.parametrize("delay", [0.005, 0.010, 0.020])

@@ -1,4 +1,4 @@
-"""Tests of jaxgait.energy against hand-computed values (thesis eq. 2.41-2.44, Wang 2012)."""
+"""Tests of jaxgait.muscles.energy against hand-computed values (thesis eq. 2.41-2.44, Wang 2012)."""
 
 import math
 
@@ -7,8 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxgait import energy as en
-from jaxgait.muscle import GEYER7, WANG8
+from jaxgait.muscles import energy as en
+from jaxgait.muscles.mtu import GEYER7, WANG8
 
 
 @pytest.fixture(autouse=True)
@@ -130,7 +130,7 @@ def test_cost_of_transport():
 
 def test_energy_from_muscle_step_info():
     """metabolic_rate takes muscle_step's info directly."""
-    from jaxgait import muscle as mu
+    from jaxgait.muscles import mtu as mu
 
     t = GEYER7
     l_mtu = jnp.asarray(t.l_opt + t.l_slack) * 1.03

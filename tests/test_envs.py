@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from jaxgait import envs as E
+from jaxgait.world import envs as E
 
 N_DRAWS = 2000
 push_force = jax.jit(E.push_force)  # jitted once: eager dispatch is slow

@@ -11,11 +11,13 @@ import jax
 import numpy as np
 import pytest
 
-from jaxgait import envs, plots, presets, scene, trajectory_io
 from jaxgait import evaluate as ev
-from jaxgait.muscle import MUSCLES
-from jaxgait.params import FBL, save_preset
-from jaxgait.trace import Events, Summary, Trace
+from jaxgait import presets
+from jaxgait.analysis import plots, trajectory_io
+from jaxgait.core.params import FBL, save_preset
+from jaxgait.muscles.mtu import MUSCLES
+from jaxgait.sim.trace import Events, Summary, Trace
+from jaxgait.world import envs, scene
 
 MASS = 80.0
 

@@ -5,11 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxgait import reflex, sim
-from jaxgait.envs import make_env
-from jaxgait.params import FBL
-from jaxgait.presets import load_preset
-from jaxgait.reflex import (
+from jaxgait import sim
+from jaxgait.control import fbl as reflex
+from jaxgait.control.fbl import (
     GAS,
     GLU,
     HAM,
@@ -27,7 +25,7 @@ from jaxgait.reflex import (
     VAS,
     fbl_stimulation,
 )
-from jaxgait.reflex_plus import (
+from jaxgait.control.fblplus import (
     EXTRA_NAMES,
     FBLPLUS,
     NEUTRAL,
@@ -37,7 +35,10 @@ from jaxgait.reflex_plus import (
     make_fblplus_model,
     phases_plus,
 )
+from jaxgait.core.params import FBL
+from jaxgait.presets import load_preset
 from jaxgait.robustness import load_params
+from jaxgait.world.envs import make_env
 
 _fbl = jax.jit(jax.vmap(fbl_stimulation, in_axes=(None, 0)))
 _plus = jax.jit(jax.vmap(fblplus_stimulation, in_axes=(None, 0)))

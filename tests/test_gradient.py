@@ -1,4 +1,4 @@
-"""Gradient refinement (jaxgait.gradient): autodiff vs finite differences, and refinement.
+"""Gradient refinement (jaxgait.optim.gradient): autodiff vs finite differences, and refinement.
 
 Everything runs in float64 (``jax.enable_x64`` for this module only) and shares one compiled
 window program: 0.05 s checkpointed segments, an outer scan of up to ``MAX_SEG`` of them, the
@@ -13,8 +13,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxgait import gradient as gr
 from jaxgait import sim
+from jaxgait.optim import gradient as gr
 
 MAX_SEG = 20  # up to 1 s windows
 OBJECTIVE = "energy"
@@ -22,8 +22,8 @@ OBJECTIVE = "energy"
 
 @pytest.fixture(scope="module")
 def setup():
-    from jaxgait.envs import make_env
     from jaxgait.train import get_model, resolve_init
+    from jaxgait.world.envs import make_env
 
     with jax.enable_x64(True):
         model = get_model("fbl")

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxgait.joints import SoftLimits, phi_to_q, q_to_phi, soft_limit_torque
+from jaxgait.body.joints import SoftLimits, phi_to_q, q_to_phi, soft_limit_torque
 
 
 @pytest.fixture(autouse=True)

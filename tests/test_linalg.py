@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from jaxgait.linalg import cho_solve, cholesky, spd_solve
-from jaxgait.rows import implicit_row_velocities
+from jaxgait.core.linalg import cho_solve, cholesky, spd_solve
+from jaxgait.sim.rows import implicit_row_velocities
 
 
 @pytest.fixture(autouse=True)

@@ -9,9 +9,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxgait import measures as M
-from jaxgait import refdata
-from jaxgait.trace import Events, Summary, Trace
+from jaxgait.analysis import measures as M
+from jaxgait.analysis import refdata
+from jaxgait.sim.trace import Events, Summary, Trace
 
 WINTER = refdata.winter_walking_kinematics()
 DT = 0.01  # trace sample period [s]

@@ -1,4 +1,4 @@
-"""Tests of jaxgait.muscle against hand-computed values of the thesis equations (2.1-2.30)."""
+"""Tests of jaxgait.muscles.mtu against hand-computed values of the thesis equations (2.1-2.30)."""
 
 import functools
 import math
@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from jaxgait import muscle as mu
-from jaxgait.muscle import GEYER7, MUSCLES, WANG8, MuscleState
+from jaxgait.muscles import mtu as mu
+from jaxgait.muscles.mtu import GEYER7, MUSCLES, WANG8, MuscleState
 
 LN005 = math.log(0.05)  # -2.995732...
 DEG = math.pi / 180.0

@@ -12,9 +12,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxgait import objective as obj
-from jaxgait.experiments import EXPERIMENTS, get_experiment
 from jaxgait.optim import INVALID_STAGE, stage_rank_key
+from jaxgait.train import objective as obj
+from jaxgait.train.experiments import EXPERIMENTS, get_experiment
 
 D_LIM = 35.0
 
@@ -221,9 +221,9 @@ def test_worst_of_k_on_fresh_environments(walk_vec):
 _SHARDED = r"""
 import json, sys
 import jax, jax.numpy as jnp, numpy as np
-from jaxgait import compile_cache
+from jaxgait.core import compile_cache
 compile_cache.enable()
-from jaxgait.experiments import get_experiment
+from jaxgait.train.experiments import get_experiment
 from jaxgait.train import PopulationEvaluator, train
 assert jax.local_device_count() == 4, jax.devices()
 exp = get_experiment("exp3", particles=16, iterations=2, duration=1.0)

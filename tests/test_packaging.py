@@ -57,8 +57,8 @@ def test_installed_wheel_finds_models(wheel, tmp_path):
         check=True,
     )
     code = (
-        "import jaxgait, jaxgait.resources as r, jaxgait.refdata as d;"
-        "from jaxgait.body import load_body;"
+        "import jaxgait, jaxgait.core.resources as r, jaxgait.analysis.refdata as d;"
+        "from jaxgait.body.planar import load_body;"
         "assert '_resources' in str(r.model_path('fbl_planar')), r.model_path('fbl_planar');"
         f"assert str(r.models_dir()).startswith({str(target)!r});"
         "b = load_body(); assert abs(b.total_mass - 80) < 1e-9;"

@@ -8,8 +8,8 @@ import shutil
 import numpy as np
 import pytest
 
-from jaxgait import refdata
-from jaxgait.resources import data_dir
+from jaxgait.analysis import refdata
+from jaxgait.core.resources import data_dir
 
 
 def read_column(fname, col):

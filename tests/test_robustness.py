@@ -1,4 +1,4 @@
-"""Robustness measures (thesis 3.2, 7.2-7.3.1): push physics, monotone search, worst of k."""
+"""Robustness measures (thesis 3.2, 7.2-7.3.1): push physics, monotone search, the CLI."""
 
 import json
 
@@ -7,15 +7,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxgait import envs, robustness, sim
-from jaxgait.envs import push_force
-from jaxgait.robustness import (
-    RobustnessConfig,
-    ladder_search,
-    load_params,
-    push_survive_fn,
-    worst_of_k,
-)
+from jaxgait import robustness, sim
+from jaxgait.analysis.robustness import RobustnessConfig, ladder_search, push_survive_fn
+from jaxgait.robustness import load_params
+from jaxgait.world import envs
+from jaxgait.world.envs import push_force
 
 # small settings shared by every real-model test (one compiled rollout of 2 s, batch 4)
 SMALL = RobustnessConfig(
@@ -89,42 +85,6 @@ def test_ladder_censoring_and_unpushed_fall():
     np.testing.assert_array_equal(res.best, [0.0, 300.0])
     np.testing.assert_array_equal(res.fell_unpushed, [True, False])
     np.testing.assert_array_equal(res.censored, [False, True])
-
-
-# ------------------------------------------------------------------------------ worst of k
-
-
-def _score(params, env):
-    """Toy evaluation: parameter 0 minus the push start time of slot 0 (larger is better)."""
-    return params[:, 0] - env.pushes.t0[:, 0]
-
-
-def test_worst_of_k_keeps_the_minimum_shared_keys():
-    params = jnp.array([[10.0, 0.0], [20.0, 1.0], [30.0, 2.0]])
-    keys = jax.random.split(jax.random.PRNGKey(3), 5)
-    worst, all_ = worst_of_k(_score, params, "push", keys, return_all=True)
-    t0 = envs.make_env_batch("push", keys).pushes.t0[:, 0]
-    assert all_.shape == (3, 5)
-    np.testing.assert_allclose(worst, params[:, 0] - t0.max(), rtol=1e-6)
-    np.testing.assert_allclose(worst, all_.min(1))
-
-
-def test_worst_of_k_per_parameter_keys_and_lexicographic_and_nan():
-    params = jnp.array([[10.0], [20.0]])
-    keys = jax.random.split(jax.random.PRNGKey(4), 6).reshape(2, 3, 2)
-    worst = worst_of_k(_score, params, envs.get_env_config("push"), keys)
-    t0 = envs.make_env_batch("push", keys.reshape(6, 2)).pushes.t0[:, 0].reshape(2, 3)
-    np.testing.assert_allclose(worst, params[:, 0] - t0.max(1), rtol=1e-6)
-
-    # (stage, criterion) pairs: the lowest stage wins, then the lowest criterion
-    table = jnp.array([[2.0, 5.0], [1.0, 9.0], [1.0, 3.0], [0.0, 1.0], [0.0, 0.5], [3.0, 0.0]])
-    lex = lambda p, env: table
-    w = worst_of_k(lex, params, "flat", jax.random.split(jax.random.PRNGKey(0), 3))
-    np.testing.assert_array_equal(w, [[1.0, 3.0], [0.0, 0.5]])
-
-    nan = lambda p, env: jnp.array([1.0, jnp.nan, 2.0, 3.0])
-    w = worst_of_k(nan, params, "flat", jax.random.split(jax.random.PRNGKey(0), 2))
-    assert w[0] == -jnp.inf and w[1] == 2.0
 
 
 # ------------------------------------------------------------------------------ real model

@@ -12,9 +12,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxgait import envs, scene
-from jaxgait import terrain as T
-from jaxgait.resources import model_path
+from jaxgait.core.resources import model_path
+from jaxgait.world import envs, scene
+from jaxgait.world import terrain as T
 
 #: Steep, short wavy course: 10 trapezoids at a 30 % grade from the first one on.
 WAVY = T.WavyConfig(n_knots=64, n_structures=10, alpha_max=math.atan(0.3), n_increase=1)

@@ -10,9 +10,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from jaxgait import envs, sim
-from jaxgait.contact import ContactParams
-from jaxgait.joints import SoftLimits
+from jaxgait import sim
+from jaxgait.body.joints import SoftLimits
+from jaxgait.world import envs
+from jaxgait.world.contact import ContactParams
 
 
 def _passive(model, contact=None, limits=None):
@@ -38,7 +39,7 @@ def _energy(model, qpos, qvel, contact_k, limit_k):
     pts = np.asarray(model.points(jnp.asarray(qpos), 0.0))[:4]
     depth = np.maximum(-pts[:, 1], 0.0)
     e += 0.5 * contact_k * np.sum(depth**2)
-    from jaxgait.joints import q_to_phi
+    from jaxgait.body.joints import q_to_phi
 
     phi = np.asarray(q_to_phi(jnp.asarray(qpos)[jnp.asarray(model._ids[3])]))
     lim = model.limits
@@ -67,7 +68,7 @@ def test_passive_drop_conserves_energy(fbl_model):
         )
         params = jnp.asarray(model.table.init, jnp.float64)
         s = sim.initial_state(model, params, env, cfg)
-        from jaxgait.joints import phi_to_q
+        from jaxgait.body.joints import phi_to_q
 
         q_leg = jnp.asarray(phi_to_q(jnp.asarray(pose)))
         qpos = s.qpos.at[2].set(0.0).at[3:6].set(q_leg).at[6:9].set(q_leg)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from mujoco import mjx
 
-from jaxgait import terrain
 from jaxgait.taga import ground, measures, model, network, reference
 from jaxgait.taga.model import TagaParams
+from jaxgait.world import terrain
 
 HIP_TAU, HIP_TAU_A, BETA = 0.05, 0.60, 2.5
 

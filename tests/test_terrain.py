@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import cumulative_trapezoid
 
-from jaxgait import terrain as T
+from jaxgait.world import terrain as T
 
 WAVY = T.WavyConfig()
 INC = T.IncreasingSlopeConfig()

@@ -18,19 +18,19 @@ import numpy as np
 import pytest
 
 from jaxgait import train as tr
-from jaxgait.checkpoint import (
+from jaxgait.presets import load_preset
+from jaxgait.train.checkpoint import (
     CheckpointError,
     CheckpointMismatchError,
     RunCheckpoints,
 )
-from jaxgait.experiments import (
+from jaxgait.train.experiments import (
     EXPERIMENTS,
     Experiment,
     ExperimentError,
     get_experiment,
     load_config,
 )
-from jaxgait.presets import load_preset
 
 TINY = dict(particles=4, iterations=2, duration=1.0, batch_size=4)
 

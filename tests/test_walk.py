@@ -4,9 +4,10 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-from jaxgait import envs, sim
-from jaxgait.measures import compute_measures
+from jaxgait import sim
+from jaxgait.analysis.measures import compute_measures
 from jaxgait.presets import load_preset
+from jaxgait.world import envs
 
 
 def _walk(vec, duration, timestep=None):

@@ -1,6 +1,6 @@
 """CMA-ES search that produced the shipped ``fbl_walk`` preset.
 
-Starts from the Geyer-Herr "G" gain family (``jaxgait.params.FBL`` initial values) and
+Starts from the Geyer-Herr "G" gain family (``jaxgait.core.params.FBL`` initial values) and
 maximises a walking score on flat ground:
 
     walk:    score = d + (not fell) (20 - 10 |v - v*|)                       (v* = 1.3 m/s)
@@ -26,10 +26,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait import envs, sim
-from jaxgait.measures import compute_measures
+from jaxgait import sim
+from jaxgait.analysis.measures import compute_measures
+from jaxgait.core.params import save_preset
 from jaxgait.optim import make_strategy
-from jaxgait.params import save_preset
+from jaxgait.world import envs
 
 
 def main(argv=None):

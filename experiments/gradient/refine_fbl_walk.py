@@ -15,9 +15,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait import gradient as gr
-from jaxgait.envs import make_env
+from jaxgait.optim import gradient as gr
 from jaxgait.train import get_model, resolve_init
+from jaxgait.world.envs import make_env
 
 
 def main():

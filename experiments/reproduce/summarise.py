@@ -38,8 +38,9 @@ def perturbation_survival(folder: Path, n: int = 16, rel: float = 1e-6, duration
     import jax
     import jax.numpy as jnp
 
-    from jaxgait import envs, sim
+    from jaxgait import sim
     from jaxgait.train import perturbed_copies
+    from jaxgait.world import envs
 
     doc = json.loads((folder / "best.json").read_text())
     model = sim.make_model(doc.get("model", "fbl"))

@@ -52,7 +52,7 @@ def load_preset(preset: str | dict) -> dict:
     if isinstance(preset, dict):
         d = dict(preset)
     else:
-        from jaxgait.resources import presets_dir
+        from jaxgait.core.resources import presets_dir
 
         p = Path(preset)
         if not p.suffix == ".json" or not p.exists():
@@ -74,7 +74,7 @@ def load_preset(preset: str | dict) -> dict:
 def terrain_for(env: str = "flat", slope: float = 0.0, start: float = 5.0):
     """Terrain of an evaluation environment: ``"flat"``, or ``"slope"`` with the given
     grade (rise/run, negative = downhill) beginning ``start`` metres ahead of the start."""
-    from jaxgait import terrain
+    from jaxgait.world import terrain
 
     if env not in ENVS:
         raise ValueError(f"unknown environment {env!r} for the Taga model; choose from {ENVS}")

@@ -33,10 +33,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait import terrain as terr
 from jaxgait.taga import measures, network, plots
 from jaxgait.taga.model import TagaParams
 from jaxgait.taga.sim import default_sim, no_push, push_on, simulate
+from jaxgait.world import terrain as terr
 
 WALK_U0 = 5.5  # Fig. 5
 PAPER_RUN_U0 = 8.3  # Fig. 9

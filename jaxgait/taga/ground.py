@@ -9,7 +9,7 @@ and zero otherwise (left ankle: F_g3, F_g4 alike).  The rest point (x_r0, y_r0) 
 to the point where the ankle first touches the ground, every time it touches down (after
 Raibert 1984).  In a discrete-time simulation "first touches" is the first step at which
 the ankle is below the terrain; the rest point is then put on the terrain surface straight
-above the ankle, (x_r, y_g(x_r)).  The terrain is any :class:`jaxgait.terrain.Terrain`
+above the ankle, (x_r, y_g(x_r)).  The terrain is any :class:`jaxgait.world.terrain.Terrain`
 (the same height functions as the FBL model).  Units: m, m/s, N.
 """
 
@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxgait.terrain import Terrain
+from jaxgait.world.terrain import Terrain
 
 
 @struct.dataclass

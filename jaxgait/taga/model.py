@@ -4,7 +4,7 @@ Geometry and inertia come from ``models/taga1991.xml`` only.  This module holds 
 remaining numbers of Appendix D (joint viscosity, knee stop, ground, torque gains,
 neural time constants, weights, feedback gains) in :class:`TagaParams`, and the joint
 forces of Appendix A written on the absolute segment angles and mapped to generalised
-forces with ``jax.vjp`` through :mod:`jaxgait.body`.
+forces with ``jax.vjp`` through :mod:`jaxgait.body.planar`.
 
 Angle convention: the paper measures the segment angles x5, x8 (thighs), x11, x14 (shanks)
 clockwise from the forward horizontal; here th = x - pi/2 is the angle from the downward
@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jaxgait.body import Body, load_body
+from jaxgait.body.planar import Body, load_body
 
 MODEL_NAME = "taga1991"
 # segment order used for the absolute angles and segment torques

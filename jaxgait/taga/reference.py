@@ -24,7 +24,7 @@ import numpy as np
 
 from jaxgait.taga import network
 from jaxgait.taga.model import TagaParams
-from jaxgait.terrain import Terrain
+from jaxgait.world.terrain import Terrain
 
 # Appendix D geometry (the MJCF holds the same numbers; the test checks they agree)
 M, M1, L1, M2, L2, G = 48.0, 7.0, 0.5, 4.0, 0.6, 9.8

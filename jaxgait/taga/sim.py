@@ -2,7 +2,7 @@
 
 Per step of length dt (all forces from the state at the start of the step):
 
-  1. ankle positions/velocities (forward-mode AD through :mod:`jaxgait.body`);
+  1. ankle positions/velocities (forward-mode AD through :mod:`jaxgait.body.planar`);
   2. ground forces, Appendix A, with the touchdown reset of the rest point
      (:mod:`jaxgait.taga.ground`) and the somatic sense h(F_g2), h(F_g4);
   3. feedback Feed1-12 (Appendix C) and torques T_r1..T_r6 from the current outputs y;
@@ -29,7 +29,7 @@ from mujoco import mjx
 
 from jaxgait.taga import ground, model, network
 from jaxgait.taga.model import Options, TagaBody, TagaParams
-from jaxgait.terrain import Terrain
+from jaxgait.world.terrain import Terrain
 
 EVENT_CAPACITY = 512
 
@@ -354,7 +354,7 @@ def simulate(
     Returns:
       (final state, :class:`Log`) with one log row every ``log_dt`` seconds.
     """
-    from jaxgait.terrain import flat
+    from jaxgait.world.terrain import flat
 
     sim = default_sim() if sim is None else sim
     state = sim.init() if state is None else state

@@ -12,14 +12,14 @@ Command line (a thin layer over :func:`train`)::
     python -m jaxgait.train exp7a [--particles N] [--iterations N] [--seed S] [--out DIR]
         [--resume] [--duration S] [--d-lim M] [--worst-of K] [--set key=value ...] [--no-plots]
 
-Only flags actually given override the experiment (:mod:`jaxgait.experiments`). ``--set``
+Only flags actually given override the experiment (:mod:`jaxgait.train.experiments`). ``--set``
 takes any experiment field, values as JSON (``--set init=null``, ``--set targets.v_desired=1.5``,
 ``--set optimiser_options.sigma_init=0.05``; dotted keys merge into mapping fields).
 
 One iteration (thesis 2.2.1, 3.2): ask the optimiser for P parameter sets; draw P x k fresh
 environments (keys from the seed and the iteration); roll all P x k out as one population,
 sharded over the local devices (:func:`population_mesh`); measure each rollout
-(:func:`jaxgait.measures.compute_measures`), score it (:mod:`jaxgait.objective`), keep the worst
+(:func:`jaxgait.analysis.measures.compute_measures`), score it (:mod:`jaxgait.train.objective`), keep the worst
 of the k scores per parameter set and tell the optimiser. Every random key is
 ``fold_in(PRNGKey(seed), iteration)``, so a run killed at any moment and resumed from its last
 checkpoint ends exactly as an uninterrupted run.
@@ -59,9 +59,11 @@ import numpy as np
 from flax import struct
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from jaxgait import objective as objective_mod
-from jaxgait.checkpoint import CheckpointError, RunCheckpoints
-from jaxgait.experiments import (
+from jaxgait.optim import INVALID_STAGE, stage_argbest, stage_better
+from jaxgait.presets import PresetError, load_preset
+from jaxgait.train import objective as objective_mod
+from jaxgait.train.checkpoint import CheckpointError, RunCheckpoints
+from jaxgait.train.experiments import (
     CONFIG_FORMAT,
     EXPERIMENTS,
     Experiment,
@@ -70,8 +72,6 @@ from jaxgait.experiments import (
     load_config,
     resolve_experiment,
 )
-from jaxgait.optim import INVALID_STAGE, stage_argbest, stage_better
-from jaxgait.presets import PresetError, load_preset
 
 #: Default parent of results folders.
 DEFAULT_RUNS = Path("runs")
@@ -80,7 +80,7 @@ POP_AXIS = "pop"
 #: fold_in tags of the keys that are not per-iteration.
 _INIT_TAG, _EVAL_TAG = 0x1D17, 0xE7A1
 #: Fallback location (source checkout) of the walking gait used before ``fbl_walk`` ships.
-_FBL_WALK_RUN = Path(__file__).resolve().parent.parent / "experiments/fbl_walk/run1/best.json"
+_FBL_WALK_RUN = Path(__file__).resolve().parents[2] / "experiments/fbl_walk/run1/best.json"
 
 
 class TrainError(ValueError):
@@ -280,7 +280,7 @@ def _batched_rollout(model_name: str, cfg):
 @functools.lru_cache(maxsize=32)
 def _scorer(objective):
     """jit: rollouts -> (stage (B,), value (B,), valid (B,)) for ``objective`` (hashable)."""
-    from jaxgait.measures import compute_measures
+    from jaxgait.analysis.measures import compute_measures
 
     measure = jax.vmap(functools.partial(compute_measures, skip=2))
 
@@ -331,7 +331,7 @@ class PopulationEvaluator:
         ``(real, trace, events, summary)`` per call; ``real`` are the indices (into ``params``)
         of the unpadded rows, which come first in the call.
         """
-        from jaxgait import envs
+        from jaxgait.world import envs
 
         n = params.shape[0]
         rows = self.rows
@@ -541,7 +541,7 @@ def progress_line(exp: Experiment, objective, state: TrainState, eta_s: float, f
 
 def save_best(out: Path, exp: Experiment, table, state: TrainState, objective) -> dict[str, Path]:
     """Write ``best.json`` (preset) and ``best_params.txt``; returns their paths."""
-    from jaxgait.params import save_preset
+    from jaxgait.core.params import save_preset
 
     vec = np.clip(np.asarray(state.best_params, np.float64), table.lower, table.upper)
     text = objective_mod.score_text(objective, state.best_stage, state.best_value)
@@ -634,8 +634,8 @@ def final_evaluation(
     EVAL)``; the measures are those of the first draw, the score is the worst of all draws
     (without the stage cap of the stage PSO).
     """
+    from jaxgait.analysis.measures import MEASURE_UNITS, compute_measures
     from jaxgait.evaluate import json_safe
-    from jaxgait.measures import MEASURE_UNITS, compute_measures
 
     k = exp.worst_of_k
     base = state.key
@@ -664,8 +664,8 @@ def final_evaluation(
         files["measures"], json.dumps(json_safe(report), indent=2, allow_nan=False) + "\n"
     )
     if plots:
-        from jaxgait.envs import make_env
-        from jaxgait.plots import plot_all
+        from jaxgait.analysis.plots import plot_all
+        from jaxgait.world.envs import make_env
 
         env = make_env(evaluator.env_cfg, keys[0])
         figs = plot_all(
@@ -709,7 +709,7 @@ def train(
     """Run (or resume) an experiment.
 
     Args:
-      config: an :class:`~jaxgait.experiments.Experiment`, a registry name or a config JSON.
+      config: an :class:`~jaxgait.train.experiments.Experiment`, a registry name or a config JSON.
       out_dir: results folder (default ``runs/<name>``).
       resume: continue from the newest readable checkpoint in ``out_dir/checkpoints`` (its
         config must equal this one); without a checkpoint, start from scratch.
@@ -927,7 +927,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("experiments (python -m jaxgait.train NAME):\n" + describe_experiments())
         return 0
     try:
-        from jaxgait import compile_cache
+        from jaxgait.core import compile_cache
 
         compile_cache.enable()  # later runs with the same shapes skip the compilation
     except ImportError:

@@ -36,11 +36,11 @@ comma-separated. Columns, in order:
                                ``models/fbl_planar.xml``)
 =====================  ======  ===============================================================
 
-Joint angles follow the Winter convention of :mod:`jaxgait.trace` (flexion and
-dorsiflexion positive), so they compare directly with :mod:`jaxgait.refdata`.  They are
+Joint angles follow the Winter convention of :mod:`jaxgait.sim.trace` (flexion and
+dorsiflexion positive), so they compare directly with :mod:`jaxgait.analysis.refdata`.  They are
 also the MJCF joint coordinates: ``root_x_m``, ``root_z_m``, then ``trunk_lean_deg``,
 ``hip_r_deg`` ... ``ankle_l_deg`` in radians are the model's qpos, so a file replays in the
-MJCF scene of :mod:`jaxgait.scene` (:func:`jaxgait.scene.trajectory_qpos`).  The root
+MJCF scene of :mod:`jaxgait.world.scene` (:func:`jaxgait.world.scene.trajectory_qpos`).  The root
 columns come last so that the earlier columns keep their positions.
 
 :func:`write_trajectory_csv` writes atomically (temporary file in the same folder, then
@@ -54,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxgait.muscle import MUSCLES
+from jaxgait.muscles.mtu import MUSCLES
 
 #: Gravitational acceleration used for body weights [m/s^2].
 G = 9.81
@@ -149,8 +149,8 @@ def write_trajectory_csv(path, trace, summary=None, model=None) -> Path:
 
     Args:
       path: output file (its folder must exist); replaced atomically.
-      trace: a single rollout's :class:`~jaxgait.trace.Trace` (no batch axis).
-      summary: its :class:`~jaxgait.trace.Summary` (body mass for the BW columns).
+      trace: a single rollout's :class:`~jaxgait.sim.trace.Trace` (no batch axis).
+      summary: its :class:`~jaxgait.sim.trace.Summary` (body mass for the BW columns).
       model: the :class:`~jaxgait.sim.Model` (muscle names; mass if no summary).
 
     Returns:

@@ -16,7 +16,7 @@ symmetric positive definite (M is, J^T C J is semi-definite) and so unconditiona
 for any c_r >= 0.  It is the same step as the R x R "dual" system
 (I + dt A C) y = J v + dt J M^-1 f + dt A a with A = J M^-1 J^T, but of size nv = 9
 instead of R = 14 rows, and needs no M^-1 J^T.  It is solved by an unrolled Cholesky
-factorisation (:mod:`jaxgait.linalg`); given the kinematic tree, one that skips the
+factorisation (:mod:`jaxgait.core.linalg`); given the kinematic tree, one that skips the
 structural zeros of M, which requires each row to act on one chain of the tree (a point on
 one body, a joint): J^T C J then couples only degrees of freedom that M couples.  The
 caller then clips the row forces by each law's own rules (e.g. the normal force stays
@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from jaxgait.linalg import spd_solve
+from jaxgait.core.linalg import spd_solve
 
 
 def implicit_row_velocities(J, a, c, M, qvel, qfrc, dt, parents=None):
@@ -41,7 +41,7 @@ def implicit_row_velocities(J, a, c, M, qvel, qfrc, dt, parents=None):
         (applied + passive - bias).
       dt: time step [s].
       parents: static dof_parentid of the kinematic tree, for the tree-structured solve
-        (:func:`jaxgait.linalg.spd_solve`); every row must act on one chain of the tree.
+        (:func:`jaxgait.core.linalg.spd_solve`); every row must act on one chain of the tree.
     """
     # sums, not dot products: XLA's CPU dots of these tiny shapes may round differently
     # with the thread count of the device, and results must not depend on the sharding

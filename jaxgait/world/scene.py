@@ -1,10 +1,10 @@
 """MJCF scenes for viewing: a body model standing on its environment's terrain.
 
-Ground contact in jaxgait is computed from the :class:`~jaxgait.terrain.Terrain` height
-function (:mod:`jaxgait.contact`), never from MuJoCo geoms.  A scene only shows that ground:
+Ground contact in jaxgait is computed from the :class:`~jaxgait.world.terrain.Terrain` height
+function (:mod:`jaxgait.world.contact`), never from MuJoCo geoms.  A scene only shows that ground:
 :func:`scene_xml` takes a body MJCF from the models folder (``fbl_planar`` or
 ``taga1991``), removes its flat ``plane`` floor and adds the terrain over [x0, x1] as a
-height field sampled from the same height function (:func:`jaxgait.terrain.terrain_hfield`).
+height field sampled from the same height function (:func:`jaxgait.world.terrain.terrain_hfield`).
 The terrain geom has ``contype = conaffinity = 0`` and no mass, so the scene's dynamics
 (nq, nv, bodies, masses, inertias, options) are those of the plain body model.
 
@@ -33,8 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxgait.resources import model_path
-from jaxgait.terrain import Terrain, terrain_hfield
+from jaxgait.core.resources import model_path
+from jaxgait.world.terrain import Terrain, terrain_hfield
 
 #: Height-field sample spacing along x [m].
 DEFAULT_DX = 0.05
@@ -59,7 +59,7 @@ _TRAJ_QPOS_COLUMNS = (
 
 
 def _as_terrain(terrain_or_env) -> Terrain:
-    """The :class:`Terrain` of an :class:`~jaxgait.envs.Env`, or the terrain itself."""
+    """The :class:`Terrain` of an :class:`~jaxgait.world.envs.Env`, or the terrain itself."""
     t = getattr(terrain_or_env, "terrain", terrain_or_env)
     if not isinstance(t, Terrain):
         raise TypeError(f"need a Terrain or an Env, got {type(terrain_or_env).__name__}")
@@ -86,10 +86,10 @@ def scene_xml(
     """MJCF text of the body ``model`` on the terrain over [x0, x1] (display only).
 
     Args:
-      terrain_or_env: a :class:`~jaxgait.terrain.Terrain` or an :class:`~jaxgait.envs.Env`
+      terrain_or_env: a :class:`~jaxgait.world.terrain.Terrain` or an :class:`~jaxgait.world.envs.Env`
         (its ``terrain``); one environment, not a batch.
       x0, x1: extent of the shown ground along x [m], x1 > x0.
-      model: MJCF in the models folder (:func:`jaxgait.resources.model_path`).
+      model: MJCF in the models folder (:func:`jaxgait.core.resources.model_path`).
       dx: largest sample spacing along x [m]; the samples are evenly spaced and include
         x0 and x1.
       width: extent of the ground along y [m].
@@ -211,11 +211,11 @@ def trajectory_qpos(traj: dict) -> np.ndarray:
     """(R, 9) qpos rows of ``models/fbl_planar.xml`` from a trajectory CSV.
 
     Args:
-      traj: :func:`jaxgait.trajectory_io.read_trajectory_csv` output (column -> (R,) array).
+      traj: :func:`jaxgait.analysis.trajectory_io.read_trajectory_csv` output (column -> (R,) array).
 
     Returns:
       (root_x, root_z, trunk_pitch, hip_r, knee_r, ankle_r, hip_l, knee_l, ankle_l) per row
-      [m, rad], the MJCF joint order (:mod:`jaxgait.trace`).
+      [m, rad], the MJCF joint order (:mod:`jaxgait.sim.trace`).
     """
     missing = [c for c in _TRAJ_QPOS_COLUMNS if c not in traj]
     if missing:

@@ -1,6 +1,6 @@
 """Fitness of a population of rollouts: weighted objectives and stage fitness (thesis 2.2.1-2.2.3).
 
-Two kinds of objective turn the measures of :func:`jaxgait.measures.compute_measures` into a
+Two kinds of objective turn the measures of :func:`jaxgait.analysis.measures.compute_measures` into a
 score, both MAXIMISED here (the optimisers' conventions are applied by :func:`to_tell`):
 
 * :class:`WeightedObjective`, the single-function objectives of thesis 2.2.3,
@@ -41,7 +41,7 @@ criteria are not finite scores NaN, mapped to the worst value of every conventio
 ``-inf`` score / ``+inf`` fitness, stage pair ``(-1, -inf)``) before anything reaches an
 optimiser, so it never enters an optimiser state or a best.
 
-Two criteria are added here to the registry of :mod:`jaxgait.criteria` for the scalar
+Two criteria are added here to the registry of :mod:`jaxgait.analysis.criteria` for the scalar
 objectives (both maximised): ``upright`` = 1 if the rollout did not fall, else 0, and
 ``energy_per_m`` = -E/d [J/m] (metabolic energy per metre, d floored at 1 mm).
 """
@@ -56,7 +56,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from jaxgait import criteria as crit
+from jaxgait.analysis import criteria as crit
 from jaxgait.optim import INVALID_STAGE, canonical_stage, evaluate_stages, stage_rank_key
 
 Measures = Mapping[str, jax.Array]
@@ -75,7 +75,7 @@ def _energy_per_m(m: Measures) -> jax.Array:
     return -m["energy_J_per_m"]
 
 
-#: Criteria defined here in addition to :data:`jaxgait.criteria.CRITERIA` (maximised).
+#: Criteria defined here in addition to :data:`jaxgait.analysis.criteria.CRITERIA` (maximised).
 EXTRA_CRITERIA = {"upright": _upright, "energy_per_m": _energy_per_m}
 
 #: Table 2.8 condition for leaving a stage whose criterion is the key: a function of d_lim [m]
@@ -110,7 +110,7 @@ class ObjectiveError(ValueError):
 
 
 def resolve_criterion(name: str) -> str:
-    """Canonical name of a criterion of :mod:`jaxgait.criteria` or of :data:`EXTRA_CRITERIA`."""
+    """Canonical name of a criterion of :mod:`jaxgait.analysis.criteria` or of :data:`EXTRA_CRITERIA`."""
     key = str(name).strip().lower()
     if key in EXTRA_CRITERIA:
         return key

@@ -7,15 +7,15 @@
 2. muscle-tendon forces and moment arms from the joint angles, the push of ``env.pushes``;
 3. Geyer ground contact against ``env.terrain`` and the ligament soft limits as stiff rows;
 4. MJX multibody dynamics (mass matrix and bias forces; constraint solver off);
-5. the rows' damping resolved linearly-implicitly (:mod:`jaxgait.rows`);
+5. the rows' damping resolved linearly-implicitly (:mod:`jaxgait.sim.rows`);
 6. ground-load filter, phases, sensors -> neural delay lines -> stimulation law;
 7. semi-implicit Euler of the body;
 8. muscle activation / CE-length integration and metabolic energy.
 
 ``rollout`` scans the step in chunks inside a ``while_loop`` that stops once the rollout
 (or, under ``vmap``, every rollout of the batch) is done, logging a decimated
-:class:`~jaxgait.trace.Trace`, the touchdown :class:`~jaxgait.trace.Events` and a
-:class:`~jaxgait.trace.Summary`.  It is ``vmap``-able over parameter vectors and
+:class:`~jaxgait.sim.trace.Trace`, the touchdown :class:`~jaxgait.sim.trace.Events` and a
+:class:`~jaxgait.sim.trace.Summary`.  It is ``vmap``-able over parameter vectors and
 environments; ``jit`` it at the edge (see :func:`make_rollout`).
 """
 
@@ -31,21 +31,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jaxgait import energy as energy_mod
-from jaxgait import muscle as mus
-from jaxgait.body import Body, load_body
-from jaxgait.contact import (
-    ContactParams,
-    ContactState,
-    contact_finalize,
-    contact_rows,
-    init_contact,
-)
-from jaxgait.envs import Env, push_force
-from jaxgait.joints import SoftLimits, q_to_phi
-from jaxgait.linalg import spd_solve
-from jaxgait.params import FBL, ParamTable
-from jaxgait.reflex import (
+from jaxgait.body.joints import SoftLimits, q_to_phi
+from jaxgait.body.planar import Body, load_body
+from jaxgait.control.fbl import (
     ReflexConfig,
     ReflexState,
     delay_taps_for,
@@ -55,8 +43,20 @@ from jaxgait.reflex import (
     sensor_array,
     update_phase,
 )
-from jaxgait.rows import implicit_row_velocities
-from jaxgait.trace import Events, Summary, Trace
+from jaxgait.core.linalg import spd_solve
+from jaxgait.core.params import FBL, ParamTable
+from jaxgait.muscles import energy as energy_mod
+from jaxgait.muscles import mtu as mus
+from jaxgait.sim.rows import implicit_row_velocities
+from jaxgait.sim.trace import Events, Summary, Trace
+from jaxgait.world.contact import (
+    ContactParams,
+    ContactState,
+    contact_finalize,
+    contact_rows,
+    init_contact,
+)
+from jaxgait.world.envs import Env, push_force
 
 CONTACT_SITES = ("heel_r", "ball_r", "heel_l", "ball_l")
 LEG_JOINTS = (("hip_r", "knee_r", "ankle_r"), ("hip_l", "knee_l", "ankle_l"))
@@ -76,7 +76,7 @@ class SimConfig:
       pose: initial posture name (see :data:`POSES`).
       muscle_substeps: sub-steps of the CE-length ODE per physics step.
       ce_solve_iters: iterations of the backward-Euler CE solve after its first intersection
-        (``solve_iters`` of :func:`jaxgait.muscle.muscle_step`; more is closer to the
+        (``solve_iters`` of :func:`jaxgait.muscles.mtu.muscle_step`; more is closer to the
         converged step and slower, see ``benchmarks/ce_solver_accuracy.py``).
       max_events: capacity of the touchdown event buffer.
       fall_hip_height: fall when the hip is lower than this above the ground [m].
@@ -171,7 +171,7 @@ class Model:
     def dof_parents(self) -> tuple[int, ...]:
         """Parent of each degree of freedom in the kinematic tree (-1: none), MuJoCo's
         ``dof_parentid``: the sparsity of M, used by the tree-structured solves
-        (:func:`jaxgait.linalg.spd_solve`)."""
+        (:func:`jaxgait.core.linalg.spd_solve`)."""
         return tuple(int(p) for p in self.body.mj_model.dof_parentid)
 
     @property
@@ -192,7 +192,7 @@ class Model:
         MJX's kinematics, composite-rigid-body inertia and recursive Newton-Euler give M
         and the bias (Coriolis, centrifugal, gravity) forces; the smooth force is
         qfrc_applied + qfrc_passive - qfrc_bias, as in ``mjx.forward`` (whose own dense
-        factorisation and solve are left to :mod:`jaxgait.linalg`, which is much faster
+        factorisation and solve are left to :mod:`jaxgait.core.linalg`, which is much faster
         under ``vmap`` on the CPU).  The MJCF's constraint solver is disabled.  These passes
         are MJX's internal functions (``mujoco.mjx._src``); ``tests/test_linalg.py`` checks the
         result against ``mjx.forward`` so that an MJX upgrade that changes them is caught.
@@ -271,7 +271,7 @@ def make_model(name: str = "fbl", timestep: float | None = None) -> Model:
     ``timestep`` [s] overrides the MJCF's physics step (delays must stay whole steps).
     """
     if name == "fblplus":
-        from jaxgait.reflex_plus import make_fblplus_model
+        from jaxgait.control.fblplus import make_fblplus_model
 
         return make_fblplus_model(timestep)
     if name != "fbl":

@@ -11,7 +11,7 @@ backend (pyplot and its global state are not used), saves a PNG and returns its 
 * :func:`plot_stick_figure`: the body every ~40 ms during the last full right-leg cycle;
 * :func:`plot_all`: the four figures into one folder.
 
-A gait cycle runs from a right touchdown to the next one (:mod:`jaxgait.measures`). A
+A gait cycle runs from a right touchdown to the next one (:mod:`jaxgait.analysis.measures`). A
 rollout without a full cycle (e.g. an early fall) is still drawn: the cycle figures then
 show the model against time on a secondary axis, the stick figure shows the last alive
 second, and the title says so.
@@ -25,8 +25,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from jaxgait import refdata
-from jaxgait.muscle import MUSCLES
+from jaxgait.analysis import refdata
+from jaxgait.muscles.mtu import MUSCLES
 
 G = 9.81
 #: Colours of the right and left legs.
@@ -63,7 +63,7 @@ def _touchdowns(events, leg: int = 0) -> np.ndarray:
 def _cycles(trace, events, n_cycles: int) -> list[tuple[float, float]]:
     """Last ``n_cycles`` full right-leg cycles (start, end) [s] inside the alive span, latest last.
 
-    Same cycle definition as :func:`jaxgait.measures.gait_cycle_curves`; a cycle must also
+    Same cycle definition as :func:`jaxgait.analysis.measures.gait_cycle_curves`; a cycle must also
     lie within the alive samples (touchdowns after a fall do not make a cycle).
     """
     alive = _alive(trace)
@@ -153,7 +153,7 @@ def plot_joint_angles(
       n_cycles: number of last full right cycles averaged (mean +- SD).
       reference: human curves; default Winter normal walking (mean +- SD band).
       correlations: ``corr_hip``, ``corr_knee``, ``corr_ankle`` for the title (e.g. from
-        :func:`jaxgait.measures.compute_measures`); computed here (last full cycle) if None.
+        :func:`jaxgait.analysis.measures.compute_measures`); computed here (last full cycle) if None.
 
     Returns:
       The path written.
@@ -288,7 +288,7 @@ def plot_activations(
       trace, events: one rollout.
       muscle_names: names of the ``trace.act`` columns.
       n_cycles: number of last full right cycles averaged.
-      emg: default :func:`jaxgait.refdata.walking_emg`.
+      emg: default :func:`jaxgait.analysis.refdata.walking_emg`.
     """
     ref = refdata.walking_emg() if emg is None else emg
     act = _np(trace.act)[:, 0, :].astype(float)
@@ -415,14 +415,14 @@ def plot_stick_figure(
     The stride is the last full right-leg cycle (from a right touchdown to the next); later
     poses are drawn more opaque. Right leg red, left leg blue, trunk black; the ground line
     is the profile of ``terrain`` under the drawn poses (its exact polyline,
-    :func:`jaxgait.terrain.terrain_polyline`; flat z = 0 if None).
+    :func:`jaxgait.world.terrain.terrain_polyline`; flat z = 0 if None).
 
     Args:
       path: PNG file to write.
       trace, events: one rollout.
       model: the :class:`~jaxgait.sim.Model` (its ``body.frames`` gives the segment poses).
-      terrain: :class:`~jaxgait.terrain.Terrain` the rollout ran on, or its
-        :class:`~jaxgait.envs.Env` (whose ``terrain`` is drawn).
+      terrain: :class:`~jaxgait.world.terrain.Terrain` the rollout ran on, or its
+        :class:`~jaxgait.world.envs.Env` (whose ``terrain`` is drawn).
       every_s: time between drawn poses [s].
     """
     terrain = getattr(terrain, "terrain", terrain)  # an Env gives its terrain
@@ -451,7 +451,7 @@ def plot_stick_figure(
     allpts = np.concatenate([p for p, *_ in lines]) if lines else np.zeros((1, 2))
     x0, x1 = float(allpts[:, 0].min()) - 0.3, float(allpts[:, 0].max()) + 0.3
     if terrain is not None:
-        from jaxgait.terrain import terrain_polyline
+        from jaxgait.world.terrain import terrain_polyline
 
         g = terrain_polyline(terrain, x0, x1)
     else:
@@ -499,9 +499,9 @@ def plot_all(
       out_dir: folder (created if missing).
       trace, events, summary: one rollout.
       model: the :class:`~jaxgait.sim.Model` (muscle names, body geometry).
-      terrain: the rollout's :class:`~jaxgait.terrain.Terrain` or
-        :class:`~jaxgait.envs.Env` (stick-figure ground line; flat z = 0 if None).
-      measures_dict: output of :func:`jaxgait.measures.compute_measures` (correlations in the
+      terrain: the rollout's :class:`~jaxgait.world.terrain.Terrain` or
+        :class:`~jaxgait.world.envs.Env` (stick-figure ground line; flat z = 0 if None).
+      measures_dict: output of :func:`jaxgait.analysis.measures.compute_measures` (correlations in the
         joint-angle title); computed if None.
       n_cycles: number of last cycles averaged in the cycle figures.
 

@@ -688,7 +688,7 @@ def muscle_step(
           f_l at the end of the step, f_v of its velocity);
         ``act`` [-], ``l_ce`` [m]: the state at the start of the step; ``stim`` [-]: the
           clipped stimulation.
-      These are the inputs of ``jaxgait.energy.metabolic_rate``.
+      These are the inputs of ``jaxgait.muscles.energy.metabolic_rate``.
     """
     act0 = jnp.asarray(state.act)
     l_ce0 = jnp.asarray(state.l_ce)

@@ -1,6 +1,6 @@
 """Walking environments (thesis 2.2.4) as pure functions of a PRNG key and a frozen config.
 
-Every environment is one pytree type, :class:`Env` = (:class:`~jaxgait.terrain.Terrain`,
+Every environment is one pytree type, :class:`Env` = (:class:`~jaxgait.world.terrain.Terrain`,
 :class:`Pushes`), with a fixed knot count K (``n_knots``) and push capacity P (``n_pushes``)
 shared by all kinds, so environments of different kinds stack into one batch and the step
 function never branches on the kind.  Environments without pushes carry P zero-magnitude
@@ -39,7 +39,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxgait.terrain import (
+from jaxgait.world.terrain import (
     DEFAULT_N_KNOTS,
     IncreasingSlopeConfig,
     Terrain,
@@ -355,7 +355,7 @@ class RandomPushEnv(EnvConfig):
 
 @dataclass(frozen=True)
 class WavyEnv(EnvConfig, WavyConfig):
-    """Environment 4: wavy ground, no pushes; fields of :class:`~jaxgait.terrain.WavyConfig`."""
+    """Environment 4: wavy ground, no pushes; fields of :class:`~jaxgait.world.terrain.WavyConfig`."""
 
     def __post_init__(self):
         EnvConfig.__post_init__(self)
@@ -368,7 +368,7 @@ class WavyEnv(EnvConfig, WavyConfig):
 @dataclass(frozen=True)
 class IncreasingSlopeEnv(EnvConfig, IncreasingSlopeConfig):
     """Environment 5: increasing slope, no pushes; fields of
-    :class:`~jaxgait.terrain.IncreasingSlopeConfig` (0 -> 30 % over 160 m, thesis 7.3.1)."""
+    :class:`~jaxgait.world.terrain.IncreasingSlopeConfig` (0 -> 30 % over 160 m, thesis 7.3.1)."""
 
     def __post_init__(self):
         EnvConfig.__post_init__(self)

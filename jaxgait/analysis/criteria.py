@@ -1,7 +1,7 @@
 """Evaluation criteria (thesis 2.2.3, Table 2.7-2.8) and stopping criteria (thesis 2.2.2).
 
 Each criterion is a pure JAX function of the measures dict of
-:func:`jaxgait.measures.compute_measures` (optionally with targets such as a desired speed)
+:func:`jaxgait.analysis.measures.compute_measures` (optionally with targets such as a desired speed)
 and is **maximised**. Criteria work unchanged on a batch of measures (leading population
 axis), since they only combine the dict's entries elementwise.
 
@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxgait.measures import MEAN_FLOOR, VAR_FLOOR
+from jaxgait.analysis.measures import MEAN_FLOOR, VAR_FLOOR
 
 Measures = Mapping[str, jax.Array]
 
@@ -155,7 +155,7 @@ def criterion(name: str, measures: Measures, **targets: float) -> jax.Array:
 
     Args:
       name: a key of :data:`CRITERIA` (or a thesis spelling, see :func:`resolve_name`).
-      measures: dict from :func:`jaxgait.measures.compute_measures` (single or batched).
+      measures: dict from :func:`jaxgait.analysis.measures.compute_measures` (single or batched).
       **targets: ``v_desired`` [m/s], ``sl_desired`` [m], ``trunk_lo``/``trunk_hi`` [rad].
         Targets the criterion does not use are ignored, so one set of targets can be
         passed to every criterion of a stage list; unknown target names are an error.

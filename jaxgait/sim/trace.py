@@ -1,7 +1,7 @@
 """What a rollout records: a decimated time series, touchdown events and a summary.
 
 All three are ``flax.struct`` pytrees with fixed shapes, so a batch of rollouts is a batch
-of traces (leading population axis) and every measure of :mod:`jaxgait.measures` can be
+of traces (leading population axis) and every measure of :mod:`jaxgait.analysis.measures` can be
 computed in JAX, inside ``vmap``/``jit``.
 
 Layout conventions used everywhere in jaxgait:

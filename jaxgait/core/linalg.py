@@ -1,7 +1,7 @@
 """Small dense symmetric positive-definite solves, unrolled into elementwise operations.
 
 The step solves two small SPD systems per environment, both 9 x 9: the mass matrix
-augmented by the damping of the stiff contact/soft-limit rows (:mod:`jaxgait.rows`), and
+augmented by the damping of the stiff contact/soft-limit rows (:mod:`jaxgait.sim.rows`), and
 the mass matrix itself.  Both have the sparsity of the kinematic tree, which
 ``spd_solve(..., parents)`` exploits.  Under
 ``vmap`` XLA's CPU backend runs ``jnp.linalg`` / ``jax.scipy.linalg`` factorisations as one

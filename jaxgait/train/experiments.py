@@ -27,7 +27,7 @@ name               model    environment      optimiser  objective               
 
 Common settings (thesis ch. 3): v* = 1.3 m/s, 60 particles x 150 iterations, d_lim = 35 m on
 flat ground and 120 m on the perturbed environments, entrance conditions of Table 2.8 (see
-:mod:`jaxgait.objective`). Choices made here where the thesis is silent:
+:mod:`jaxgait.train.objective`). Choices made here where the thesis is silent:
 
 * Time limit (``duration``): 60 s for d_lim = 35 m (a 1.3 m/s gait needs 27 s, thesis 2.2.2
   asks t_lim > 23 s) and 120 s for d_lim = 120 m (92 s at 1.3 m/s).
@@ -113,7 +113,7 @@ class Experiment:
       description: one line.
       model: model family (``fbl`` or ``fblplus``; checked against :func:`jaxgait.sim.make_model`
         when the experiment is run).
-      env: environment name (:data:`jaxgait.envs.ENVIRONMENTS`).
+      env: environment name (:data:`jaxgait.world.envs.ENVIRONMENTS`).
       env_overrides: ((field, value), ...) replaced in the environment config.
       optimiser: ``stage_pso``, ``pso`` or ``cmaes``.
       optimiser_options: ((name, value), ...) hyper-parameters (e.g. ``sigma_init`` for CMA-ES,
@@ -218,8 +218,8 @@ class Experiment:
 
     def _check_deep(self) -> None:
         """Check names against the environment, criteria and optimiser registries."""
-        from jaxgait import objective as obj
-        from jaxgait.envs import ENVIRONMENTS, get_env_config
+        from jaxgait.train import objective as obj
+        from jaxgait.world.envs import ENVIRONMENTS, get_env_config
 
         if self.env not in ENVIRONMENTS:
             raise ExperimentError(
@@ -240,8 +240,8 @@ class Experiment:
 
     # ------------------------------------------------------------------ builders
     def objective(self):
-        """The :class:`~jaxgait.objective.StageObjective` or ``WeightedObjective``."""
-        from jaxgait.objective import make_objective
+        """The :class:`~jaxgait.train.objective.StageObjective` or ``WeightedObjective``."""
+        from jaxgait.train.objective import make_objective
 
         return make_objective(
             stages=self.stages or None,
@@ -257,8 +257,8 @@ class Experiment:
         return make_strategy(self.optimiser, self.particles, **dict(self.optimiser_options))
 
     def env_config(self):
-        """The :class:`~jaxgait.envs.EnvConfig` with ``env_overrides`` applied."""
-        from jaxgait.envs import get_env_config
+        """The :class:`~jaxgait.world.envs.EnvConfig` with ``env_overrides`` applied."""
+        from jaxgait.world.envs import get_env_config
 
         return get_env_config(self.env, **dict(self.env_overrides))
 

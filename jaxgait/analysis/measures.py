@@ -1,5 +1,5 @@
-"""Gait measures of one rollout, computed in JAX from its :class:`~jaxgait.trace.Trace`,
-:class:`~jaxgait.trace.Events` and :class:`~jaxgait.trace.Summary` (thesis 2.2.2-2.2.3).
+"""Gait measures of one rollout, computed in JAX from its :class:`~jaxgait.sim.trace.Trace`,
+:class:`~jaxgait.sim.trace.Events` and :class:`~jaxgait.sim.trace.Summary` (thesis 2.2.2-2.2.3).
 
 Every function here has fixed output shapes and no Python branching on traced values, so a
 batch of rollouts is measured with ``jax.vmap(compute_measures)`` inside ``jit``. Undefined
@@ -8,7 +8,7 @@ NaN. :func:`compute_measures` and :func:`gait_cycle_curves` are jitted with thei
 configuration (``skip``, the reference curves, ``pct``, ``leg``, ``n_cycles``) static; bind
 it with ``functools.partial`` before ``vmap``, which would otherwise map keyword arguments.
 
-Conventions (see :mod:`jaxgait.trace`): leg 0 = right, 1 = left; ``qpos`` columns 3, 4, 5
+Conventions (see :mod:`jaxgait.sim.trace`): leg 0 = right, 1 = left; ``qpos`` columns 3, 4, 5
 are the right hip flexion, knee flexion and ankle dorsiflexion [rad]. ``trace.alive`` is
 assumed to be a prefix of the trace (the rollout runs, then stops).
 """
@@ -21,8 +21,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait import refdata
-from jaxgait.trace import Events, Summary, Trace
+from jaxgait.analysis import refdata
+from jaxgait.sim.trace import Events, Summary, Trace
 
 #: Gravitational acceleration used for body weights and the dimensionless cost [m/s^2].
 G = 9.81
@@ -195,7 +195,7 @@ def gait_cycle_curves(
 
     A cycle runs from one recorded touchdown of ``leg`` to its next one; cycle 0 is the last
     full cycle. Each is sampled (linear interpolation in time) at the instants ``pct``
-    percent of the way through it, e.g. the ``gait_cycle_pct`` of a :mod:`jaxgait.refdata`
+    percent of the way through it, e.g. the ``gait_cycle_pct`` of a :mod:`jaxgait.analysis.refdata`
     curve, so that model and human curves have the same length (thesis 2.2.3,
     eq. 2.48-2.51). Times are clamped to the alive span of the trace.
 
@@ -337,7 +337,7 @@ def compute_measures(
     Args:
       trace, events, summary: the rollout record (one individual; ``vmap`` for a batch).
       reference: human joint-angle curves for the correlations (static); default Winter
-        normal walking (:func:`jaxgait.refdata.winter_walking_kinematics`).
+        normal walking (:func:`jaxgait.analysis.refdata.winter_walking_kinematics`).
       skip: leading touchdown events ignored as start-up transients for the step-length,
         cycle-frequency and double-stance measures (static).
 

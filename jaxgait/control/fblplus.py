@@ -1,6 +1,6 @@
 """FBL+: the FBL reflex walker with Wang-style limb preparation (thesis 2.1.3, Table 2.6).
 
-FBL+ keeps every rule of FBL (:func:`jaxgait.reflex.fbl_stimulation`, thesis Table 2.4) and
+FBL+ keeps every rule of FBL (:func:`jaxgait.control.fbl.fbl_stimulation`, thesis Table 2.4) and
 changes two things (thesis 2.1.3; Wang et al. 2012 section 4):
 
 1. **Stance end** (Wang's *swing initiation*) is entered by contralateral touchdown as in FBL
@@ -29,7 +29,7 @@ changes two things (thesis 2.1.3; Wang et al. 2012 section 4):
    HFL and GLU share the hip target delta_h^ref (thesis 2.1.3).
 
 Angle conventions of the targets (the GH angles phi_h, phi_k of the sensors, see
-:mod:`jaxgait.joints`, are converted in the law):
+:mod:`jaxgait.body.joints`, are converted in the law):
 
 * hip: delta_h = phi_h - pi [rad]: 0 with the thigh in line with the trunk, **negative in
   flexion** (thigh ahead of the trunk).  Table 2.6's range [-1, 0] rad for delta_h^ref spans
@@ -72,8 +72,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait.params import FBL, ParamSpec, ParamTable
-from jaxgait.reflex import (
+from jaxgait.control.fbl import (
     GLU,
     HFL,
     N_MUSCLES,
@@ -87,8 +86,9 @@ from jaxgait.reflex import (
     VAS,
     fbl_stimulation,
 )
+from jaxgait.core.params import FBL, ParamSpec, ParamTable
 
-_T26 = "thesis Table 2.6 range (reading in jaxgait.reflex_plus)"
+_T26 = "thesis Table 2.6 range (reading in jaxgait.control.fblplus)"
 _N = "init = neutral (FBL+ reduces to FBL)"
 
 #: The 10 FBL+ parameters of thesis Table 2.6 (section 2.1.3).  Initial values are the
@@ -153,7 +153,7 @@ def lift_fbl(vec_fbl, extras: dict | None = None) -> np.ndarray:
     """FBL+ parameter vector (38,) from an FBL vector (28,) and extra values.
 
     Args:
-      vec_fbl: (28,) FBL parameters in :data:`jaxgait.params.FBL` order.
+      vec_fbl: (28,) FBL parameters in :data:`jaxgait.core.params.FBL` order.
       extras: name -> value for some of :data:`EXTRA_NAMES`; the rest take :data:`NEUTRAL`.
     """
     vec_fbl = np.asarray(vec_fbl, dtype=float)
@@ -221,7 +221,7 @@ def write_neutral_preset(src, dst) -> np.ndarray:
     """
     from pathlib import Path
 
-    from jaxgait.params import save_preset
+    from jaxgait.core.params import save_preset
     from jaxgait.presets import load_preset, resolve_preset
 
     path = resolve_preset(src)

@@ -30,7 +30,7 @@ under a small change of the parameters, which the finite-difference test checks 
 window; over longer windows it is a useful descent direction, not the derivative of the
 (discontinuous) window cost. Short windows (0.05-2 s), gradient clipping and a check that the
 refined gait still walks (:func:`refine`) keep it safe. Smoothing the gates (e.g. a sigmoid of
-the load instead of the ``where``) would need a change in :mod:`jaxgait.reflex`.
+the load instead of the ``where``) would need a change in :mod:`jaxgait.control.fbl`.
 
 :func:`refine` is the optimiser: ``optax.chain(clip_by_global_norm, adam)`` on the parameters
 in box coordinates (each range mapped to [0, 1]), clipped to the ranges after each update. The
@@ -52,7 +52,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxgait import sim
-from jaxgait.envs import Env
+from jaxgait.world.envs import Env
 
 #: Window objectives (minimised).
 OBJECTIVES = ("energy", "angles")
@@ -186,7 +186,7 @@ def window(
 
 
 def _winter_deg() -> tuple[np.ndarray, np.ndarray]:
-    from jaxgait.refdata import winter_walking_kinematics
+    from jaxgait.analysis.refdata import winter_walking_kinematics
 
     ref = winter_walking_kinematics()
     return np.asarray(ref.gait_cycle_pct) / 100.0, np.asarray(ref.mean_deg)

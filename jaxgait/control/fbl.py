@@ -36,9 +36,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jaxgait.delay import DelayLine, delay_init, delay_taps, steps_for
+from jaxgait.control.delay import DelayLine, delay_init, delay_taps, steps_for
 
-# muscle order (per leg) shared with jaxgait.muscle
+# muscle order (per leg) shared with jaxgait.muscles.mtu
 HFL, GLU, HAM, VAS, GAS, SOL, TA = range(7)
 N_MUSCLES = 7
 
@@ -84,7 +84,7 @@ class ReflexState:
       td_time: (2,) time of each leg's last touchdown [s].
       theta_to: (2,) trunk pitch at each leg's last take-off [rad].
       lines: one delay line over the (2, N_SENSORS) sensor array, as long as the longest
-        delay, read at each group's delay (:func:`jaxgait.delay.delay_taps`).
+        delay, read at each group's delay (:func:`jaxgait.control.delay.delay_taps`).
     """
 
     load: jax.Array

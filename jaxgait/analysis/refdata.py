@@ -2,7 +2,7 @@
 
 Every curve spans one gait cycle of the reference (right) leg: ``gait_cycle_pct`` 0 is its
 heel strike, 100 its next heel strike. Angles are in degrees with hip flexion, knee flexion
-and ankle dorsiflexion positive (the convention of :mod:`jaxgait.trace`); forces are in body
+and ankle dorsiflexion positive (the convention of :mod:`jaxgait.sim.trace`); forces are in body
 weights (1 BW = m g); EMG envelopes are unitless in [0, 1]. The files and their provenance
 are described in ``jaxgait/data/SOURCES.md``.
 
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxgait.resources import data_dir as _default_data_dir
+from jaxgait.core.resources import data_dir as _default_data_dir
 
 WINTER_KINEMATICS_FILE = "winter_normal_walking_kinematics.csv"
 WINTER_GRF_FILE = "winter_normal_walking_grf.csv"

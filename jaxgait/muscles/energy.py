@@ -17,7 +17,7 @@ t_I is the slow-twitch (type I) fibre fraction (``MuscleTable.type1``); the thes
 fast-twitch fraction 1 - t_I as "t_I I" (SPEC section 1.5).  The muscle mass is
 m = F_max / sigma * l_opt * rho with sigma = 0.25 MPa and rho = 1059.7 kg/m^3.
 
-Velocities follow ``jaxgait.muscle``: v_ce in m/s, shortening negative, so "shortening" is
+Velocities follow ``jaxgait.muscles.mtu``: v_ce in m/s, shortening negative, so "shortening" is
 v_ce < 0 and the shortening speed is max(-v_ce, 0).
 
 Wang et al. 2012 add a basal rate of 1.51 W per kg of body mass and define their effort as
@@ -29,7 +29,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait.muscle import MuscleTable, merge_muscle_axes
+from jaxgait.muscles.mtu import MuscleTable, merge_muscle_axes
 
 __all__ = [
     "BASAL_RATE",
@@ -112,7 +112,7 @@ def metabolic_components(table: MuscleTable, stim, act, l_ce, v_ce, f_ce, f_mtu)
       v_ce: (..., M) CE velocity [m/s], shortening negative.
       f_ce: (..., M) active CE force A F_max f_l f_v [N].
       f_mtu: (..., M) total MTU force [N].
-      (``jaxgait.muscle.muscle_step`` returns all of them in its ``info``.)
+      (``jaxgait.muscles.mtu.muscle_step`` returns all of them in its ``info``.)
 
     Returns:
       dict of (..., M) arrays: ``activation`` A = m f_A(s), ``maintenance``

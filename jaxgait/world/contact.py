@@ -1,7 +1,7 @@
 """Geyer & Herr 2010 ground contact: nonlinear spring-damper with stick/slip friction.
 
 Computed by jaxgait (MuJoCo's constraint solver is off) for every contact point (heel and
-ball of each foot) against a :class:`~jaxgait.terrain.Terrain` height function.  Laws as in
+ball of each foot) against a :class:`~jaxgait.world.terrain.Terrain` height function.  Laws as in
 Geyer's model (``geyer_reference.md`` §3e), written in the local ground frame (normal n,
 tangent t) so that they hold on slopes:
 
@@ -15,7 +15,7 @@ Each law is "spring + velocity damping", F = a - c v, with a damping coefficient
 with the penetration (c = k_n d / v_n_max).  A foot's contact points see an effective mass
 of a fraction of a kilogram, so an explicit step would need dt << 0.1 ms; the simulator
 therefore resolves the damping of all contact rows linearly-implicitly (see
-:mod:`jaxgait.rows`).  This module gives the rows (a, c, direction) and, from the row
+:mod:`jaxgait.sim.rows`).  This module gives the rows (a, c, direction) and, from the row
 velocities the solver settles on, the final forces, slide flags and anchors.
 Units: N, m, m/s.
 """
@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxgait.terrain import Terrain, normal_of_slope
+from jaxgait.world.terrain import Terrain, normal_of_slope
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxgait.resources import model_path
+from jaxgait.core.resources import model_path
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,0 +1,1 @@
+"""Layer 7: measures, criteria, human reference data, plots, trajectories, robustness."""

@@ -1,0 +1,1 @@
+"""Layer 1: the multibody (planar kinematics read from the MJCF) and joint conventions."""

@@ -1,0 +1,1 @@
+"""Layer 0: what every stage uses (parameter tables, resources, small linear algebra)."""

@@ -1,0 +1,1 @@
+"""Layer 2: Geyer muscle-tendon units and their metabolic energy."""

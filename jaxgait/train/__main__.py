@@ -1,0 +1,5 @@
+import sys
+
+from jaxgait.train.loop import main
+
+sys.exit(main())

@@ -1,0 +1,1 @@
+"""Layer 3: terrains, environments (pushes), ground contact and viewing scenes."""
