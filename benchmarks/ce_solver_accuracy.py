@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait import presets, sim
+from jaxgait import models, presets, sim
 from jaxgait.muscles import mtu as mu
 from jaxgait.muscles.mtu import GEYER7
 from jaxgait.world import envs
@@ -38,7 +38,7 @@ KS = (0, 1, 2, 3)
 
 def walk_states(seconds: float):
     """(act, l_ce, l_mtu at the step's end) of every muscle step of fbl_walk, (n, 14) each."""
-    model = sim.make_model()
+    model = models.get_model("fbl")
     params = jnp.asarray(presets.load_preset("fbl_walk")[1], jnp.float32)
     rec = []
     inner = mu.muscle_step

@@ -33,8 +33,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-#: new path -> canonical (older) path of a state field, applied to every key.
-ALIASES: dict[str, str] = {}
+#: renamed state fields: new path segment -> canonical (older) one, applied to every key.
+#: The controller interface split ``SimState.reflex`` into the shared gait-phase state
+#: ``gait`` (load, stance, td_time, theta_to) and the controller's own state ``ctrl`` (for
+#: the reflex controllers, the delay line that was ``reflex.lines``).
+ALIASES: dict[str, str] = {".gait.": ".reflex.", ".ctrl.": ".reflex.lines."}
 
 TIMING_COLUMNS = ("wall_s", "elapsed_s", "time_s", "eta_s", "rollouts_per_s", "seconds")
 
@@ -48,9 +51,8 @@ def _digest(x) -> str:
 
 
 def _canonical(path: str) -> str:
-    for new, old in sorted(ALIASES.items(), key=lambda kv: -len(kv[0])):
-        if path == new or path.startswith(new + "."):
-            return old + path[len(new) :]
+    for new, old in ALIASES.items():
+        path = path.replace(new, old)
     return path
 
 
@@ -77,8 +79,9 @@ def _api():
         from jaxgait.train import train
         from jaxgait.world import envs
     except ImportError:
-        from jaxgait import envs, gradient
         from jaxgait.reflex_plus import OFF, lift_fbl
+
+        from jaxgait import envs, gradient
         from jaxgait.train import train
     try:
         from jaxgait.models import get_model

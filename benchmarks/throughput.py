@@ -40,10 +40,10 @@ def _setup(batch: int):
     import jax
     import jax.numpy as jnp
 
-    from jaxgait import sim
+    from jaxgait import models, sim
     from jaxgait.world import envs
 
-    model = sim.make_model()
+    model = models.get_model("fbl")
     cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
     keys = jax.random.split(jax.random.PRNGKey(0), batch)
     env = envs.make_env_batch("flat", keys)
@@ -100,14 +100,15 @@ def run_case(kind: str, batch: int, steps: int, repeats: int) -> dict:
     import jax
     import numpy as np
 
-    from jaxgait import sim
 
     extra = {}
     if kind == "c":
         import mujoco
         from mujoco import rollout
 
-        model = sim.make_model()
+        from jaxgait import models
+
+        model = models.get_model("fbl")
         m = model.body.mj_model
         d = mujoco.MjData(m)
         nthread = os.cpu_count() or 1

@@ -37,12 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxgait import models
+from jaxgait.core.jsonio import json_safe
 from jaxgait.presets import load_preset, preset_from_dict, resolve_preset
 
-#: Model names accepted by ``--model``: the FBL reflex walker, its FBL+ extension (thesis
-#: 2.1.3) and Taga's oscillator biped; a name :func:`jaxgait.sim.make_model` does not know
-#: is an error.
-MODEL_CHOICES = ("fbl", "fblplus", "taga")
 #: Environment names (keys of :data:`jaxgait.world.envs.ENVIRONMENTS`).
 ENV_CHOICES = (
     "flat",
@@ -114,29 +112,6 @@ class EvalRun:
 # --------------------------------------------------------------------------- helpers
 
 
-def json_safe(x):
-    """Python scalars / lists / dicts for JSON: NumPy and JAX numbers converted, NaN -> None."""
-    if isinstance(x, dict):
-        return {str(k): json_safe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [json_safe(v) for v in x]
-    if isinstance(x, (str, type(None))):
-        return x
-    if isinstance(x, Path):
-        return str(x)
-    a = np.asarray(x)
-    if a.ndim > 0:
-        return [json_safe(v) for v in a.tolist()]
-    if a.dtype == bool:
-        return bool(a)
-    if np.issubdtype(a.dtype, np.integer):
-        return int(a)
-    if np.issubdtype(a.dtype, np.number):
-        v = float(a)
-        return v if math.isfinite(v) else None
-    return str(x)
-
-
 def _load(preset) -> tuple[str, np.ndarray, dict, str, str]:
     """(model, vec, doc, label, file) for a preset name / path / dict."""
     if isinstance(preset, dict):
@@ -161,8 +136,8 @@ def _check_inputs(env: str, duration: float, seed: int) -> None:
 def _choose_model(requested: str | None, declared: str, label: str) -> str:
     """The model to run: ``requested`` if given (must agree with the preset), else declared."""
     for name in (requested, declared):
-        if name is not None and name not in ("fbl", "taga"):
-            _fbl_model(name)  # raises EvaluateError if the name is not available
+        if name is not None and name not in models.model_names():
+            _fbl_model(name)  # raises EvaluateError: the name is not registered
     if requested is not None and requested != declared:
         raise EvaluateError(
             f"model {requested!r} was requested (--model) but the preset {label} is for "
@@ -171,17 +146,14 @@ def _choose_model(requested: str | None, declared: str, label: str) -> str:
     return declared
 
 
-@functools.lru_cache(maxsize=4)
 def _fbl_model(name: str):
-    from jaxgait import sim
-
-    try:
-        return sim.make_model(name)
-    except KeyError:
+    """The planar model ``name`` from the registry (cached there)."""
+    if name not in models.model_names("planar"):
         raise EvaluateError(
             f"model {name!r} is not available in this version of jaxgait "
-            "(available: fbl, fblplus, taga)"
-        ) from None
+            f"(available: {', '.join(models.model_names())})"
+        )
+    return models.get_model(name)
 
 
 @functools.lru_cache(maxsize=8)
@@ -245,7 +217,7 @@ def run(
     _check_inputs(env, duration, seed)
     declared, vec, doc, label, file = _load(preset)
     name = _choose_model(model, declared, label)
-    if name in ("taga",):
+    if name in models.model_names("taga"):
         raise EvaluateError(f"run() simulates FBL models; use evaluate() for model {name!r}")
     mdl = _fbl_model(name)
     table = doc.get("table", declared)
@@ -337,7 +309,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("preset", help="preset name, preset JSON file, or results folder (best.json)")
     p.add_argument(
         "--model",
-        choices=MODEL_CHOICES,
+        choices=models.model_names(),  # every registered model (jaxgait.models)
         default=None,
         help="model family (default: the preset's 'model' field)",
     )

@@ -17,8 +17,9 @@ source checkout) and are referred to by file stem: ``load_preset("geyer_walk")``
 else is a path to a JSON file, or to a results folder holding ``best.json`` (as written by
 the search scripts).
 
-Presets of the ``taga`` model are not an FBL parameter table: they are passed through
-unvalidated (the raw dict is in the returned document) for :mod:`jaxgait.taga` to check.
+The models and their tables are those of the registry (:mod:`jaxgait.models`).  Presets of
+a model without a parameter table (the ``taga`` family) are passed through unvalidated (the
+raw dict is in the returned document) for :mod:`jaxgait.taga` to check.
 
 Every problem raises :class:`PresetError` (a ``ValueError``) whose message starts with the
 file (or ``where``) and says what is wrong: missing file (with the available preset names),
@@ -34,11 +35,11 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxgait.core import params as params_mod
-from jaxgait.core.params import ParamTable
+from jaxgait import models
+from jaxgait.control.fblplus import FBLPLUS, lift_fbl
+from jaxgait.core.params import ParamTable, save_preset
+from jaxgait.core.resources import presets_dir
 
-#: Model families whose presets are not FBL parameter tables (passed through unvalidated).
-PASS_THROUGH_MODELS = ("taga",)
 #: File looked for inside a results folder.
 RESULTS_FILE = "best.json"
 
@@ -51,21 +52,21 @@ class PresetError(ValueError):
 
 
 def param_tables() -> dict[str, ParamTable]:
-    """Every :class:`ParamTable` of :mod:`jaxgait.core.params` and :mod:`jaxgait.control.fblplus`."""
-    from jaxgait.control import fblplus as reflex_plus
-
-    mods = (params_mod, reflex_plus)
-    return {v.name: v for m in mods for v in vars(m).values() if isinstance(v, ParamTable)}
+    """Every parameter table of the registered models (:func:`jaxgait.models.param_tables`)."""
+    return models.param_tables()
 
 
 def available_models() -> tuple[str, ...]:
-    """Model names a preset may declare: the parameter tables plus :data:`PASS_THROUGH_MODELS`."""
-    return tuple(sorted(param_tables())) + PASS_THROUGH_MODELS
+    """Model names a preset may declare: the registered models."""
+    return models.model_names()
+
+
+def _pass_through(model: str) -> bool:
+    """A registered model whose presets are not a parameter table (Taga)."""
+    return model in models.model_names() and models.get_spec(model).table is None
 
 
 def _presets_dir() -> Path | None:
-    from jaxgait.core.resources import presets_dir
-
     try:
         return presets_dir()
     except FileNotFoundError:
@@ -145,7 +146,7 @@ def preset_from_dict(doc, where: str = "preset") -> tuple[str, np.ndarray, dict]
     if "params" not in doc:
         raise PresetError(f"{where}: no 'params' entry (expected {{name: value, ...}})")
     raw = doc["params"]
-    if model in PASS_THROUGH_MODELS:
+    if _pass_through(model):
         return model, np.zeros(0), doc
     if not isinstance(raw, dict):
         raise PresetError(f"{where}: 'params' must be an object {{name: value}}, got {raw!r:.60}")
@@ -215,3 +216,40 @@ def load_preset(name_or_path: str | Path) -> tuple[str, np.ndarray, dict]:
             f"{path}: invalid JSON at line {e.lineno}, column {e.colno}: {e.msg}"
         ) from None
     return preset_from_dict(doc, where=str(path))
+
+
+def write_neutral_preset(src, dst) -> np.ndarray:
+    """Write the FBL+ preset ``dst`` made of the FBL preset ``src`` and neutral extras.
+
+    The result walks exactly like ``src`` (see "Reduction to FBL" in
+    :mod:`jaxgait.control.fblplus`).  ``src`` is anything :func:`load_preset` accepts.
+    Returns the (38,) vector.
+    """
+    path = resolve_preset(src)
+    model, vec, _ = load_preset(path)
+    if model != "fbl":
+        raise ValueError(f"{path}: an FBL preset is needed, this one is for model {model!r}")
+    try:
+        source = path.resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        source = str(path)
+    vec_plus = lift_fbl(vec)
+    FBLPLUS.check(vec_plus, where=str(dst))
+    description = (
+        f"FBL+ walking on flat ground (thesis 2.1.3): the FBL walking preset {source} with the "
+        "10 extra FBL+ parameters neutral: swing-end PD gains kp/kd of HFL, GLU and VAS = 0, "
+        "stance-end CoM threshold d_st_end = 3 foot lengths (its upper bound, never reached "
+        "in stance, so stance end comes from double support only, as in FBL), hip/knee "
+        "targets and d_sw_end at the table's initial values (inactive with zero gains). "
+        "It walks exactly like the source preset."
+    )
+    save_preset(
+        Path(dst),
+        "fblplus",
+        FBLPLUS,
+        vec_plus,
+        description=description,
+        source=source,
+        extras_neutral=True,
+    )
+    return vec_plus

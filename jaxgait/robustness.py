@@ -16,92 +16,35 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import functools
 import json
 import sys
 
 import numpy as np
 
+from jaxgait import models
 from jaxgait.analysis.robustness import TEST_CHOICES, RobustnessConfig, robustness
-from jaxgait.control.fblplus import FBLPLUS, lift_fbl
-from jaxgait.presets import PresetError, param_tables, resolve_preset
-
-MODEL_CHOICES = ("fbl", "fblplus")
-
-
-# ------------------------------------------------------------------------------ presets, CLI
+from jaxgait.control.fblplus import lift_fbl
+from jaxgait.core.jsonio import json_safe
+from jaxgait.presets import load_preset
 
 
-def _load_fblplus_doc(doc: dict, where: str) -> tuple[str, np.ndarray, dict]:
-    """Validate an FBL+ preset document against :data:`FBLPLUS` (see jaxgait.presets)."""
-    raw = doc.get("params")
-    if not isinstance(raw, dict):
-        raise PresetError(f"{where}: 'params' must be an object {{name: value}}")
-    unknown = [k for k in raw if k not in FBLPLUS.names]
-    if unknown:
-        raise PresetError(f"{where}: unknown parameter(s) for table 'fblplus': {unknown}")
-    bad = [k for k, v in raw.items() if isinstance(v, bool) or not isinstance(v, (int, float))]
-    if bad:
-        raise PresetError(f"{where}: non-numeric value(s) for {bad}")
-    missing = [n for n in FBLPLUS.names if n not in raw]
-    if missing and doc.get("partial", False) is not True:
-        raise PresetError(f"{where}: missing parameter(s) for table 'fblplus': {missing}")
-    vec = FBLPLUS.pack(raw)
-    try:
-        FBLPLUS.check(vec, where=where)
-    except ValueError as e:
-        raise PresetError(str(e)) from None
-    return doc.get("model", "fblplus"), vec, doc
+def model_choices() -> tuple[str, ...]:
+    """Models the robustness tests run: the planar models of the registry."""
+    return models.model_names("planar")
 
 
-def load_params(preset) -> tuple[str, np.ndarray, dict]:
-    """``(model, vec, doc)`` of a preset name / JSON file / results folder.
-
-    :func:`jaxgait.presets.load_preset`, with FBL+ presets validated here against
-    :data:`~jaxgait.control.fblplus.FBLPLUS` while :mod:`jaxgait.presets` does not know that
-    table.
-    """
-    from jaxgait.presets import load_preset
-
-    path = resolve_preset(preset)
-    try:
-        return load_preset(path)
-    except PresetError:
-        try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            doc = None
-        if (
-            isinstance(doc, dict)
-            and doc.get("table", doc.get("model")) == FBLPLUS.name
-            and FBLPLUS.name not in param_tables()
-        ):
-            return _load_fblplus_doc(doc, str(path))
-        raise
-
-
-@functools.lru_cache(maxsize=4)
 def get_model(name: str):
-    """The :class:`~jaxgait.sim.Model` ``fbl`` or ``fblplus`` (one instance per process, so
-    compiled rollouts are reused)."""
-    from jaxgait import sim
-    from jaxgait.control.fblplus import make_fblplus_model
-
-    if name not in MODEL_CHOICES:
-        raise ValueError(f"unknown model {name!r}; available: {', '.join(MODEL_CHOICES)}")
-    try:
-        return sim.make_model(name)
-    except KeyError:
-        if name == "fblplus":
-            return make_fblplus_model()
-        raise
+    """The planar model ``name`` from the registry (cached there)."""
+    if name not in model_choices():
+        raise ValueError(f"unknown model {name!r}; available: {', '.join(model_choices())}")
+    return models.get_model(name)
 
 
 def params_for_model(declared: str, vec: np.ndarray, requested: str | None):
     """(model name, vector) to run: an FBL preset is lifted to FBL+ on request."""
     name = requested or declared
-    if name not in MODEL_CHOICES:
-        raise ValueError(f"model {name!r} is not available here ({', '.join(MODEL_CHOICES)})")
+    if name not in model_choices():
+        raise ValueError(f"model {name!r} is not available here ({', '.join(model_choices())})")
     if name == declared:
         return name, vec
     if declared == "fbl" and name == "fblplus":
@@ -115,7 +58,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Maximum push, wavy-ground slope and increasing-slope distance of a preset.",
     )
     p.add_argument("preset", help="preset name, preset JSON file, or results folder")
-    p.add_argument("--model", choices=MODEL_CHOICES, default=None, help="default: the preset's")
+    p.add_argument("--model", choices=model_choices(), default=None, help="default: the preset's")
     p.add_argument("--seeds", type=int, default=5, help="environment draws per measure (5)")
     p.add_argument("--seed", type=int, default=0, help="base PRNG seed (0)")
     p.add_argument(
@@ -164,8 +107,6 @@ def format_report(rep: dict) -> str:
 
 def main(argv=None) -> int:
     """CLI entry point; 0 on success, 2 on bad input."""
-    from jaxgait.evaluate import json_safe
-
     try:
         a = _parser().parse_args(argv)
     except SystemExit as e:
@@ -191,7 +132,7 @@ def main(argv=None) -> int:
                 push_per_rung=a.push_per_rung,
                 push_refine=a.push_refine,
             )
-            declared, vec, doc = load_params(a.preset)
+            declared, vec, doc = load_preset(a.preset)
             name, vec = params_for_model(declared, vec, a.model)
             model = get_model(name)
             rep = {"preset": str(a.preset), **robustness(model, vec, rcfg, tests)}

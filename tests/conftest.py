@@ -7,13 +7,12 @@ import pytest
 # rollout share the compiled program instead of compiling it again.
 os.environ.setdefault("JAXGAIT_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".jax_cache"))
 
-from jaxgait import compile_cache  # noqa: E402
+from jaxgait import models  # noqa: E402
+from jaxgait.core import compile_cache  # noqa: E402
 
 compile_cache.enable()
 
 
 @pytest.fixture(scope="session")
 def fbl_model():
-    from jaxgait import sim
-
-    return sim.make_model()
+    return models.get_model("fbl")

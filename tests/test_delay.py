@@ -6,7 +6,7 @@ import pytest
 
 from jaxgait.control import fbl as reflex
 from jaxgait.control.delay import delay_init, delay_step, delay_taps, steps_for
-from jaxgait.core.params import FBL
+from jaxgait.control.fbl import FBL
 
 
 @pytest.mark.parametrize("delay", [0.005, 0.010, 0.020])
@@ -48,19 +48,16 @@ def test_delay_must_be_whole_steps():
 def test_reflex_delays_per_muscle_group():
     """A force impulse on every muscle reaches hip / knee / ankle stimulations 5/10/20 ms later."""
     dt = 0.0005
-    cfg = reflex.ReflexConfig()
+    n = max(reflex.delay_taps_for(reflex.ReflexSettings(), dt))
     zero = jnp.zeros((2, reflex.N_SENSORS))
-    st = reflex.init_reflex(
-        cfg, dt, zero.at[:, reflex.S_STANCE].set(1.0), jnp.ones(2), [True, True], 0.0
-    )
+    lines = delay_init(n, zero.at[:, reflex.S_STANCE].set(1.0))
     p = FBL.unpack(jnp.asarray(FBL.init))
     base = zero.at[:, reflex.S_STANCE].set(1.0)
     kick = base.at[:, reflex.S_F].set(1.0)
     stims = []
     for k in range(60):
         s_in = kick if k == 3 else base
-        stim, lines = reflex.delayed_stimulation(p, st, s_in)
-        st = st.replace(lines=lines)
+        stim, lines = reflex.delayed_stimulation(p, lines, s_in)
         stims.append(np.asarray(stim[0]))
     stims = np.array(stims)
     changed = np.abs(stims - stims[0]).max(axis=0) > 0
@@ -75,16 +72,14 @@ def test_reflex_delays_per_muscle_group():
 
 def test_reflex_delay_hip_group():
     dt = 0.0005
-    cfg = reflex.ReflexConfig()
     base = jnp.zeros((2, reflex.N_SENSORS))  # swing: GLU/HAM force feedback
-    st = reflex.init_reflex(cfg, dt, base, jnp.zeros(2), [False, False], 0.0)
+    lines = delay_init(max(reflex.delay_taps_for(reflex.ReflexSettings(), dt)), base)
     p = FBL.unpack(jnp.asarray(FBL.init))
     out = []
     for k in range(30):
         stim, lines = reflex.delayed_stimulation(
-            p, st, base.at[:, reflex.S_F].set(1.0) if k == 2 else base
+            p, lines, base.at[:, reflex.S_F].set(1.0) if k == 2 else base
         )
-        st = st.replace(lines=lines)
         out.append(float(stim[0, reflex.GLU]))
     out = np.array(out)
     assert int(np.argmax(np.abs(out - out[0]) > 0)) == 2 + 10

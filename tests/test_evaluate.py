@@ -14,7 +14,8 @@ import pytest
 from jaxgait import evaluate as ev
 from jaxgait import presets
 from jaxgait.analysis import plots, trajectory_io
-from jaxgait.core.params import FBL, save_preset
+from jaxgait.control.fbl import FBL
+from jaxgait.core.params import save_preset
 from jaxgait.muscles.mtu import MUSCLES
 from jaxgait.sim.trace import Events, Summary, Trace
 from jaxgait.world import envs, scene

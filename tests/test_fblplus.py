@@ -5,9 +5,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxgait import sim
+from jaxgait import models, sim
 from jaxgait.control import fbl as reflex
 from jaxgait.control.fbl import (
+    FBL,
     GAS,
     GLU,
     HAM,
@@ -32,12 +33,9 @@ from jaxgait.control.fblplus import (
     OFF,
     fblplus_stimulation,
     lift_fbl,
-    make_fblplus_model,
     phases_plus,
 )
-from jaxgait.core.params import FBL
 from jaxgait.presets import load_preset
-from jaxgait.robustness import load_params
 from jaxgait.world.envs import make_env
 
 _fbl = jax.jit(jax.vmap(fbl_stimulation, in_axes=(None, 0)))
@@ -143,13 +141,13 @@ def test_swing_end_with_zero_gains_changes_nothing():
 @pytest.fixture(scope="module")
 def walk_vec():
     """The FBL part of the shipped FBL+ walking preset (an FBL walking gait)."""
-    model, vec, _ = load_params("fblplus_walk")
+    model, vec, _ = load_preset("fblplus_walk")
     assert model == "fblplus"
     return vec[: FBL.size]
 
 
 def test_shipped_preset_is_the_fbl_walk_with_neutral_extras(walk_vec):
-    _, vec, doc = load_params("fblplus_walk")
+    _, vec, doc = load_preset("fblplus_walk")
     assert doc["table"] == "fblplus" and vec.shape == (38,)
     np.testing.assert_array_equal(vec, lift_fbl(walk_vec))
     src = load_preset(doc["source"])
@@ -159,7 +157,7 @@ def test_shipped_preset_is_the_fbl_walk_with_neutral_extras(walk_vec):
 @pytest.fixture(scope="module")
 def rollouts(fbl_model, walk_vec):
     """Short walks on flat ground from the same start: FBL (1 set) and FBL+ (2 sets)."""
-    plus = make_fblplus_model()
+    plus = models.get_model("fblplus")
     cfg = sim.SimConfig(duration=1.2, log_dt=0.01, chunk_s=0.4)
     env = make_env("flat", jax.random.PRNGKey(0))
     # both batched alike (2 lanes): the same vectorised physics, so results compare exactly
@@ -174,7 +172,7 @@ def rollouts(fbl_model, walk_vec):
 def test_make_fblplus_model(rollouts, fbl_model):
     plus = rollouts[2]
     assert plus.name == "fblplus" and plus.table is FBLPLUS
-    assert plus.law is fblplus_stimulation
+    assert plus.controller.settings.law is fblplus_stimulation
     assert plus.muscles is fbl_model.muscles and plus.dt == fbl_model.dt
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from jaxgait import robustness, sim
 from jaxgait.analysis.robustness import RobustnessConfig, ladder_search, push_survive_fn
-from jaxgait.robustness import load_params
+from jaxgait.presets import load_preset
 from jaxgait.world import envs
 from jaxgait.world.envs import push_force
 
@@ -92,7 +92,7 @@ def test_ladder_censoring_and_unpushed_fall():
 
 @pytest.fixture(scope="module")
 def walker():
-    _, vec, _ = load_params("fblplus_walk")
+    _, vec, _ = load_preset("fblplus_walk")
     return robustness.get_model("fbl"), vec[:28]
 
 
@@ -170,7 +170,7 @@ def test_real_push_search_is_monotone(push_search):
 
 def test_cli_json_keys(push_search, capsys):
     """The CLI with small settings (the same compiled rollout as above) prints one JSON."""
-    fbl_preset = load_params("fblplus_walk")[2]["source"]  # the FBL walk it was made from
+    fbl_preset = load_preset("fblplus_walk")[2]["source"]  # the FBL walk it was made from
     argv = [
         fbl_preset,
         "--model",
@@ -208,7 +208,7 @@ def test_cli_json_keys(push_search, capsys):
 
 
 def test_fbl_preset_lifted_to_fblplus_on_request():
-    _, vec, _ = load_params("fblplus_walk")
+    _, vec, _ = load_preset("fblplus_walk")
     name, lifted = robustness.params_for_model("fbl", vec[:28], "fblplus")
     assert name == "fblplus"
     np.testing.assert_array_equal(lifted, vec)

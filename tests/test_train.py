@@ -1,7 +1,7 @@
 """Training runs, experiment registry, checkpoints and the command line (tiny sizes).
 
 Every run here uses 4 particles, 1 s rollouts and 4 rollouts per device call, so the whole
-file compiles one rollout program (shared through :func:`jaxgait.train._batched_rollout`).
+file compiles one rollout program (shared through :func:`jaxgait.train.evaluator._batched_rollout`).
 """
 
 from __future__ import annotations
@@ -356,8 +356,10 @@ def test_cli_overrides_only_given_flags(tmp_path):
 
 
 def test_unavailable_model_is_refused_clearly():
-    with pytest.raises(tr.TrainError, match="model fblminus not available yet"):
+    with pytest.raises(tr.TrainError, match="'fblminus' cannot be trained here.*fbl, fblplus"):
         tr.get_model("fblminus")
+    with pytest.raises(tr.TrainError, match="'taga' cannot be trained here"):
+        tr.get_model("taga")
 
 
 def test_parse_set():

@@ -4,14 +4,14 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-from jaxgait import sim
+from jaxgait import models, sim
 from jaxgait.analysis.measures import compute_measures
 from jaxgait.presets import load_preset
 from jaxgait.world import envs
 
 
 def _walk(vec, duration, timestep=None):
-    model = sim.make_model(timestep=timestep)
+    model = models.get_model("fbl", timestep)
     cfg = sim.SimConfig(duration=duration, chunk_s=1.0)
     env = envs.make_env("flat", jax.random.PRNGKey(0))
     tr, ev, sm, _ = sim.make_rollout(model, cfg, batched=False)(jnp.asarray(vec, jnp.float32), env)

@@ -1,6 +1,6 @@
 """CMA-ES search that produced the shipped ``fbl_walk`` preset.
 
-Starts from the Geyer-Herr "G" gain family (``jaxgait.core.params.FBL`` initial values) and
+Starts from the Geyer-Herr "G" gain family (``jaxgait.control.fbl.FBL`` initial values) and
 maximises a walking score on flat ground:
 
     walk:    score = d + (not fell) (20 - 10 |v - v*|)                       (v* = 1.3 m/s)
@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait import sim
+from jaxgait import models, sim
 from jaxgait.analysis.measures import compute_measures
 from jaxgait.core.params import save_preset
 from jaxgait.optim import make_strategy
@@ -54,7 +54,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
 
-    model = sim.make_model()
+    model = models.get_model("fbl")
     table = model.table
     cfg = sim.SimConfig(duration=a.duration, chunk_s=1.0)
     init = table.init

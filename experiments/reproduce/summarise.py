@@ -38,12 +38,12 @@ def perturbation_survival(folder: Path, n: int = 16, rel: float = 1e-6, duration
     import jax
     import jax.numpy as jnp
 
-    from jaxgait import sim
+    from jaxgait import models, sim
     from jaxgait.train import perturbed_copies
     from jaxgait.world import envs
 
     doc = json.loads((folder / "best.json").read_text())
-    model = sim.make_model(doc.get("model", "fbl"))
+    model = models.get_model(doc.get("model", "fbl"))
     vec = jnp.asarray([doc["params"][k] for k in model.table.names], jnp.float32)
     pert = perturbed_copies(vec, jax.random.PRNGKey(1), n, rel)
     env = envs.make_env_batch("flat", jax.random.split(jax.random.PRNGKey(0), n))

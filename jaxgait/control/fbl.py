@@ -29,14 +29,17 @@ SPEC errata).  Stimulations are clipped to [0.01, 1] by the muscle model.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import struct
 
+from jaxgait.control.commands import Command
 from jaxgait.control.delay import DelayLine, delay_init, delay_taps, steps_for
+from jaxgait.control.interface import Controller, Sensors
+from jaxgait.core.params import ParamSpec, ParamTable
 
 # muscle order (per leg) shared with jaxgait.muscles.mtu
 HFL, GLU, HAM, VAS, GAS, SOL, TA = range(7)
@@ -65,70 +68,22 @@ MUSCLE_DELAY_GROUP = np.array([0, 0, 0, 1, 2, 2, 2])
 
 
 @dataclass(frozen=True)
-class ReflexConfig:
-    """Fixed (non-optimised) controller settings."""
-
-    delays: tuple = (0.005, 0.010, 0.020)  # s, Geyer & Herr 2010
-    ground_tau: float = 100.0  # 1/s, eq. 2.34 sensor filter rate
-    stance_on: float = 0.05  # filtered load / (M g) above which a swing leg enters stance
-    stance_off: float = 0.01  # ... below which a stance leg enters swing (hysteresis)
-
-
-@struct.dataclass
-class ReflexState:
-    """Controller memory.
+class ReflexSettings:
+    """Static data of a reflex controller: its neural delays and its stimulation law.
 
     Attributes:
-      load: (2,) filtered ground load per leg / (M g) (eq. 2.34).
-      stance: (2,) bool, leg in stance at the previous step.
-      td_time: (2,) time of each leg's last touchdown [s].
-      theta_to: (2,) trunk pitch at each leg's last take-off [rad].
-      lines: one delay line over the (2, N_SENSORS) sensor array, as long as the longest
-        delay, read at each group's delay (:func:`jaxgait.control.delay.delay_taps`).
+      delays: (hip, knee, ankle) muscle-group delays [s] (Geyer & Herr 2010: 5, 10, 20 ms).
+      law: ``(p, sensors (rows, N_SENSORS)) -> stim (rows, 7)``, evaluated on the delayed
+        sensor arrays (FBL: :func:`fbl_stimulation`).
     """
 
-    load: jax.Array
-    stance: jax.Array
-    td_time: jax.Array
-    theta_to: jax.Array
-    lines: DelayLine
+    delays: tuple = (0.005, 0.010, 0.020)
+    law: Callable = None  # set by reflex_controller
 
 
-def init_reflex(
-    cfg: ReflexConfig, dt: float, sensors0: jax.Array, load0, stance0, theta0
-) -> ReflexState:
-    lines = delay_init(max(steps_for(d, dt) for d in cfg.delays), sensors0)
-    stance0 = jnp.asarray(stance0, bool)
-    return ReflexState(
-        load=jnp.asarray(load0, sensors0.dtype),
-        stance=stance0,
-        td_time=jnp.where(stance0, -jnp.asarray([0.0, 0.3], sensors0.dtype), -1.0),
-        theta_to=jnp.full((2,), theta0, sensors0.dtype),
-        lines=lines,
-    )
-
-
-def delay_taps_for(cfg: ReflexConfig, dt: float) -> tuple[int, ...]:
+def delay_taps_for(settings: ReflexSettings, dt: float) -> tuple[int, ...]:
     """The delay of each muscle group in whole steps of dt (static)."""
-    return tuple(steps_for(d, dt) for d in cfg.delays)
-
-
-def update_phase(cfg: ReflexConfig, st: ReflexState, grf_n, mg, t, theta, dt):
-    """Filter the ground load (eq. 2.34) and update stance, touchdown times, theta_TO.
-
-    Returns (new state without delay lines changed, stance, touchdown (2,) bool, DS (2,)).
-    """
-    load = st.load + dt * cfg.ground_tau * (grf_n / mg - st.load)
-    thresh = jnp.where(st.stance, cfg.stance_off, cfg.stance_on)
-    stance = load > thresh
-    touchdown = stance & ~st.stance
-    takeoff = ~stance & st.stance
-    td_time = jnp.where(touchdown, t, st.td_time)
-    theta_to = jnp.where(takeoff, theta, st.theta_to)
-    other = td_time[::-1]
-    ds = stance & stance[::-1] & (other > td_time)
-    new = st.replace(load=load, stance=stance, td_time=td_time, theta_to=theta_to)
-    return new, stance, touchdown, ds
+    return tuple(steps_for(d, dt) for d in settings.delays)
 
 
 def sensor_array(f_norm, l_norm, load, stance, ds, theta, dtheta, phi, dphi, theta_to, dcom):
@@ -203,7 +158,7 @@ def fbl_stimulation(p: dict, s: jax.Array) -> jax.Array:
 
 
 def delayed_stimulation(
-    p: dict, st: ReflexState, sensors: jax.Array, law=fbl_stimulation, taps=None
+    p: dict, lines: DelayLine, sensors: jax.Array, law=fbl_stimulation, taps=None
 ):
     """Push the current sensors into the delay line; stimulation from the delayed copies.
 
@@ -213,12 +168,131 @@ def delayed_stimulation(
     Returns (stim (2, 7), new delay line).
     """
     if taps is None:  # the default delays, scaled to the line (its length is the longest)
-        n, ds = st.lines.n_steps, ReflexConfig().delays
+        n, ds = lines.n_steps, ReflexSettings().delays
         taps = tuple(round(n * d / max(ds)) for d in ds)
-    outs, lines = delay_taps(st.lines, sensors, taps)  # (3, 2, S)
+    outs, lines = delay_taps(lines, sensors, taps)  # (3, 2, S)
     g, legs, ns = outs.shape
     stim = law(p, outs.reshape(g * legs, ns)).reshape(g, legs, -1)  # (3, 2, 7)
     stim = jnp.take_along_axis(
         stim, jnp.asarray(MUSCLE_DELAY_GROUP)[None, None, :].repeat(2, 1), axis=0
     )[0]
     return stim, lines
+
+
+def packed_sensors(sens: Sensors) -> jax.Array:
+    """The (2, N_SENSORS) array of the reflex laws from the shared :class:`Sensors`."""
+    return sensor_array(
+        sens.f_norm,
+        sens.l_norm,
+        sens.load,
+        sens.stance,
+        sens.double_support,
+        sens.trunk,
+        sens.dtrunk,
+        sens.phi,
+        sens.dphi,
+        sens.theta_to,
+        sens.dcom,
+    )
+
+
+def reflex_init(ctrl: Controller, sens: Sensors, dt: float) -> DelayLine:
+    """State of a reflex controller: one delay line over the packed sensors, as long as the
+    longest delay, filled with the start sensors."""
+    return delay_init(max(delay_taps_for(ctrl.settings, dt)), packed_sensors(sens))
+
+
+def with_commands(p: dict, command: dict) -> dict:
+    """Parameters as the law sees them: the ``lean_offset`` command [rad] added to
+    theta_ref."""
+    return {**p, "theta_ref": p["theta_ref"] + command["lean_offset"]}
+
+
+def reflex_step(ctrl: Controller, p: dict, sens: Sensors, lines: DelayLine, command: dict, dt):
+    """Stimulation (2, 7) of a reflex controller: the packed sensors through the delay line,
+    the law on each group's delayed copy (:func:`delayed_stimulation`)."""
+    taps = delay_taps_for(ctrl.settings, dt)
+    return delayed_stimulation(
+        with_commands(p, command), lines, packed_sensors(sens), ctrl.settings.law, taps
+    )
+
+
+#: Command of the reflex walkers: an offset of the trunk-lean reference theta_ref (a forward
+#: lean makes Geyer's walker walk faster).
+LEAN_OFFSET = Command(
+    "lean_offset", 0.0, "rad", "added to theta_ref (trunk-lean reference of the hip PD)"
+)
+
+
+def reflex_controller(
+    name: str,
+    table: ParamTable,
+    law: Callable,
+    commands: tuple[Command, ...] = (LEAN_OFFSET,),
+    delays: tuple = ReflexSettings.delays,
+    description: str = "",
+) -> Controller:
+    """A reflex controller on the 7 Geyer muscles: ``law`` on the delayed packed sensors."""
+    return Controller(
+        name=name,
+        table=table,
+        n_muscles=N_MUSCLES,
+        init=reflex_init,
+        step=reflex_step,
+        commands=commands,
+        settings=ReflexSettings(delays=delays, law=law),
+        description=description,
+    )
+
+
+_G = "Geyer nms_model_ControlInit.m (geyer_reference 2c, G family)"
+_T25 = "thesis Table 2.5 range"
+_R = "range: Geyer value +- a wide margin (Table 2.5 range illegible)"
+
+#: The 28 FBL parameters of thesis Table 2.5, initial values from Geyer's own Simulink
+#: model (the "G" gain family of geyer_reference.md 2c), expressed in the thesis's
+#: normalised units (force feedback per F/F_max, length feedback per l_opt).
+FBL = ParamTable(
+    "fbl",
+    (
+        # stance-phase trunk stability (eq. 2.35-2.36)
+        ParamSpec("k_bw", 1.2, 0.8, 1.4, "A/GH2010 KBW 1.2; " + _T25),
+        ParamSpec("k_p1", 1.9099, 0.5, 3.0, "k_p = 1/30deg " + _G + "; " + _R, "1/rad"),
+        ParamSpec("k_p2", 1.3369, 0.3, 3.0, "0.7 k_p (GLU = 0.7 HAM) " + _G + "; " + _R, "1/rad"),
+        ParamSpec("k_d", 0.2, 0.0, 0.8, "k_d " + _G + "; " + _R, "s/rad"),
+        ParamSpec("theta_ref", 0.1047, -0.05, 0.3, "6 deg " + _G + "; " + _R, "rad"),
+        # force feedback (per F/F_max)
+        ParamSpec("G_SOL", 1.2, 0.8, 1.6, _G + "; " + _T25),
+        ParamSpec("G_TA_SOL", 0.4, 0.1, 0.8, _G + "; " + _T25),
+        ParamSpec("G_GAS", 1.1, 0.3, 1.6, _G + "; " + _T25),
+        ParamSpec("G_VAS", 1.2, 0.9, 1.8, _G + "; " + _T25),
+        ParamSpec("G_HAM", 0.65, 0.2, 1.0, _G + "; " + _T25),
+        ParamSpec("G_GLU", 0.5, 0.2, 0.9, _G + "; " + _T25),
+        # length feedback (per l_opt)
+        ParamSpec("G_TA", 1.1, 0.5, 3.0, _G + "; " + _R),
+        ParamSpec("G_HFL", 0.5, 0.1, 1.5, _G + "; " + _R),
+        ParamSpec("G_HAM_HFL", 4.0, 0.0, 6.0, _G + "; " + _R),
+        ParamSpec("loff_TA", 0.72, 0.5, 1.0, "1 - 0.5 w " + _G + "; " + _R, "l_opt"),
+        ParamSpec("loff_HFL", 0.65, 0.3, 1.0, _G + "; " + _R, "l_opt"),
+        ParamSpec("loff_HAM", 0.85, 0.5, 1.0, _G + "; " + _R, "l_opt"),
+        # basal activity
+        ParamSpec("S0_SOL", 0.01, 0.01, 0.1, _G + "; " + _T25),
+        ParamSpec("S0_TA", 0.01, 0.01, 0.1, _G + "; " + _T25),
+        ParamSpec("S0_GAS", 0.01, 0.01, 0.1, _G + "; " + _T25),
+        ParamSpec("S0_VAS", 0.08, 0.01, 0.2, _G + "; " + _R),
+        ParamSpec("S0_HAM", 0.05, 0.01, 0.1, "S0_BAL " + _G + "; " + _T25),
+        ParamSpec("S0_GLU", 0.05, 0.01, 0.1, "S0_BAL " + _G + "; " + _T25),
+        ParamSpec("S0_HFL", 0.05, 0.01, 0.1, "S0_BAL " + _G + "; " + _T25),
+        # others
+        ParamSpec("k_lean", 1.1459, 0.0, 2.0, "2 %/deg " + _G + "; " + _T25, "1/rad"),
+        ParamSpec("k_phi", 2.0, 0.0, 3.0, _G + "; " + _T25, "1/rad"),
+        ParamSpec("phi_k_off", 2.9671, 2.8, float(np.pi), "170 deg " + _G + "; " + _T25, "rad"),
+        ParamSpec("delta_S", 0.25, 0.0, 1.05, "K_swing " + _G + "; " + _T25),
+    ),
+)
+
+
+#: The FBL controller (thesis 2.1.2.3): Table 2.4's law, 5/10/20 ms delays.
+FBL_CONTROLLER = reflex_controller(
+    "fbl", FBL, fbl_stimulation, description="Geyer-Herr reflex walker (thesis 2.1.2, Table 2.4)"
+)

@@ -72,9 +72,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxgait.control.commands import Command
 from jaxgait.control.fbl import (
+    FBL,
     GLU,
     HFL,
+    LEAN_OFFSET,
     N_MUSCLES,
     S_DCOM,
     S_DHIP,
@@ -85,8 +88,10 @@ from jaxgait.control.fbl import (
     S_STANCE,
     VAS,
     fbl_stimulation,
+    reflex_controller,
+    reflex_step,
 )
-from jaxgait.core.params import FBL, ParamSpec, ParamTable
+from jaxgait.core.params import ParamSpec, ParamTable
 
 _T26 = "thesis Table 2.6 range (reading in jaxgait.control.fblplus)"
 _N = "init = neutral (FBL+ reduces to FBL)"
@@ -153,7 +158,7 @@ def lift_fbl(vec_fbl, extras: dict | None = None) -> np.ndarray:
     """FBL+ parameter vector (38,) from an FBL vector (28,) and extra values.
 
     Args:
-      vec_fbl: (28,) FBL parameters in :data:`jaxgait.core.params.FBL` order.
+      vec_fbl: (28,) FBL parameters in :data:`jaxgait.control.fbl.FBL` order.
       extras: name -> value for some of :data:`EXTRA_NAMES`; the rest take :data:`NEUTRAL`.
     """
     vec_fbl = np.asarray(vec_fbl, dtype=float)
@@ -213,51 +218,26 @@ def fblplus_stimulation(p: dict, s: jax.Array) -> jax.Array:
     return jnp.where(swing_end[:, None], stim + swing_end_pd(p, s), stim)
 
 
-def write_neutral_preset(src, dst) -> np.ndarray:
-    """Write the FBL+ preset ``dst`` made of the FBL preset ``src`` and :data:`NEUTRAL` extras.
+def fblplus_step(ctrl, p: dict, sens, lines, command: dict, dt):
+    """FBL+ step: FBL's reflex step with the ``hip_target_offset`` command [rad] added to the
+    swing-end hip target delta_hip_ref."""
+    p = {**p, "delta_hip_ref": p["delta_hip_ref"] + command["hip_target_offset"]}
+    return reflex_step(ctrl, p, sens, lines, command, dt)
 
-    The result walks exactly like ``src`` (see "Reduction to FBL" in the module docstring).
-    ``src`` is anything :func:`jaxgait.presets.load_preset` accepts.  Returns the (38,) vector.
-    """
-    from pathlib import Path
 
-    from jaxgait.core.params import save_preset
-    from jaxgait.presets import load_preset, resolve_preset
+#: FBL+ command: an offset of the swing-end hip target (foot placement before landing).
+HIP_TARGET_OFFSET = Command(
+    "hip_target_offset", 0.0, "rad", "added to delta_hip_ref (swing-end hip target)"
+)
 
-    path = resolve_preset(src)
-    model, vec, _ = load_preset(path)
-    if model != "fbl":
-        raise ValueError(f"{path}: an FBL preset is needed, this one is for model {model!r}")
-    try:
-        source = path.resolve().relative_to(Path.cwd().resolve()).as_posix()
-    except ValueError:
-        source = str(path)
-    vec_plus = lift_fbl(vec)
-    FBLPLUS.check(vec_plus, where=str(dst))
-    description = (
-        f"FBL+ walking on flat ground (thesis 2.1.3): the FBL walking preset {source} with the "
-        "10 extra FBL+ parameters neutral: swing-end PD gains kp/kd of HFL, GLU and VAS = 0, "
-        "stance-end CoM threshold d_st_end = 3 foot lengths (its upper bound, never reached "
-        "in stance, so stance end comes from double support only, as in FBL), hip/knee "
-        "targets and d_sw_end at the table's initial values (inactive with zero gains). "
-        "It walks exactly like the source preset."
-    )
-    save_preset(
-        Path(dst),
+#: The FBL+ controller (thesis 2.1.3): FBL's delays and sensors, :func:`fblplus_stimulation`.
+FBLPLUS_CONTROLLER = dataclasses.replace(
+    reflex_controller(
         "fblplus",
         FBLPLUS,
-        vec_plus,
-        description=description,
-        source=source,
-        extras_neutral=True,
-    )
-    return vec_plus
-
-
-def make_fblplus_model(timestep: float | None = None):
-    """The FBL+ :class:`~jaxgait.sim.Model`: FBL's body and muscles, table and law of FBL+."""
-    from jaxgait import sim
-
-    return dataclasses.replace(
-        sim.make_model("fbl", timestep), table=FBLPLUS, law=fblplus_stimulation, name="fblplus"
-    )
+        fblplus_stimulation,
+        commands=(LEAN_OFFSET, HIP_TARGET_OFFSET),
+        description="FBL with swing-end PD rules and CoM-distance phases (thesis 2.1.3)",
+    ),
+    step=fblplus_step,
+)

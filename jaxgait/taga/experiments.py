@@ -33,9 +33,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxgait.control import commands
 from jaxgait.taga import measures, network, plots
 from jaxgait.taga.model import TagaParams
-from jaxgait.taga.sim import default_sim, no_push, push_on, simulate
+from jaxgait.taga.sim import COMMANDS, default_sim, no_push, push_on, simulate
 from jaxgait.world import terrain as terr
 
 WALK_U0 = 5.5  # Fig. 5
@@ -667,7 +668,7 @@ def fig11(out: Path, quick: bool = False) -> dict:
     levels = np.array(up + down)
     log_dt = 0.01
     per = int(round(plateau / log_dt))
-    series = jnp.asarray(np.repeat(levels, per), jnp.float32)
+    drive = commands.schedule(COMMANDS, [(k * plateau, {"u0": float(u)}) for k, u in enumerate(levels)])
     cap = int(len(levels) * plateau * 6)
     st, log = simulate(
         TagaParams(u0=levels[0]),
@@ -675,7 +676,7 @@ def fig11(out: Path, quick: bool = False) -> dict:
         sim=sim,
         log_dt=log_dt,
         state=sim.init(event_capacity=cap),
-        u0_series=series,
+        commands=drive,
     )
     rows = []
     for k, u0 in enumerate(levels):

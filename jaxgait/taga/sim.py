@@ -27,6 +27,7 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
+from jaxgait.control.commands import Command, CommandError, Schedule
 from jaxgait.taga import ground, model, network
 from jaxgait.taga.model import Options, TagaBody, TagaParams
 from jaxgait.world.terrain import Terrain
@@ -266,19 +267,20 @@ class Taga:
         n_log: int,
         log_every: int,
         push: Push | None = None,
-        u0_series=None,
+        commands: Schedule | None = None,
     ):
         """Scan ``n_log * log_every`` steps, logging one row every ``log_every`` steps.
 
         Args:
-          u0_series: optional (n_log,) tonic input per logged interval (a schedule, e.g.
-            the up/down sweep of Fig. 11); default ``params.u0`` throughout.
+          commands: optional :class:`~jaxgait.control.commands.Schedule` of the command
+            vector (:data:`COMMANDS`: the tonic drive u0), e.g. the up/down sweep of Fig. 11;
+            default ``params.u0`` throughout.  It is read once per logged interval, at the
+            interval's midpoint (the drive is constant within an interval).
         Returns:
           (final state, :class:`Log`).
         """
         push = no_push(state.t.dtype) if push is None else push
-        if u0_series is None:
-            u0_series = jnp.full((n_log,), params.u0, state.t.dtype)
+        u0_series = u0_per_interval(params, state.t, n_log, log_every * self.timestep, commands)
 
         def inner(carry, _):
             s, nd, nf, u0 = carry
@@ -334,9 +336,30 @@ def _record(ev: Events, touchdown, t, x) -> Events:
     return ev.replace(n=n)
 
 
+#: Command inputs of the Taga biped (a :class:`~jaxgait.control.commands.Schedule` has one
+#: column per entry).
+COMMANDS = (
+    Command("u0", 5.5, "-", "tonic descending drive of the oscillators (default: params.u0)"),
+)
+
+
+def u0_per_interval(params: TagaParams, t0, n_log: int, interval: float, commands=None):
+    """(n_log,) tonic drive of each logged interval: ``params.u0``, or the schedule at the
+    interval midpoints t0 + (k + 1/2) interval."""
+    dtype = jnp.asarray(t0).dtype
+    if commands is None:
+        return jnp.full((n_log,), params.u0, dtype)
+    if commands.values.shape[-1] != len(COMMANDS):
+        raise CommandError(
+            f"a Taga schedule has {len(COMMANDS)} column (u0), got {commands.values.shape[-1]}"
+        )
+    mid = t0 + (jnp.arange(n_log, dtype=dtype) + 0.5) * interval
+    return jax.vmap(commands.at)(mid)[:, 0].astype(dtype)
+
+
 @partial(jax.jit, static_argnums=(0, 4, 5))
-def _jit_rollout(sim: Taga, params, state, terrain, n_log, log_every, push, u0_series):
-    return sim.rollout(params, state, terrain, n_log, log_every, push, u0_series)
+def _jit_rollout(sim: Taga, params, state, terrain, n_log, log_every, push, commands):
+    return sim.rollout(params, state, terrain, n_log, log_every, push, commands)
 
 
 def simulate(
@@ -347,9 +370,11 @@ def simulate(
     state: TagaState | None = None,
     sim: Taga | None = None,
     log_dt: float = 0.01,
-    u0_series=None,
+    commands: Schedule | None = None,
 ):
     """Jitted convenience rollout from Appendix E (or ``state``) for ``duration`` seconds.
+
+    ``commands``: optional schedule of the tonic drive u0 (see :meth:`Taga.rollout`).
 
     Returns:
       (final state, :class:`Log`) with one log row every ``log_dt`` seconds.
@@ -364,9 +389,7 @@ def simulate(
     log_every = max(1, int(round(log_dt / sim.timestep)))
     n_log = int(round(duration / (log_every * sim.timestep)))
     push = no_push(dtype) if push is None else push
-    if u0_series is None:
-        u0_series = jnp.full((n_log,), params.u0, dtype)
-    return _jit_rollout(sim, params, state, terrain, n_log, log_every, push, u0_series)
+    return _jit_rollout(sim, params, state, terrain, n_log, log_every, push, commands)
 
 
 _SIMS: dict = {}

@@ -1,4 +1,83 @@
-"""Layer 11: objectives, the experiment registry, checkpoints and the training loop."""
+"""Layer 11, training: run an optimisation experiment: population rollouts, fitness, optimiser, checkpoints, results.
 
-from jaxgait.train.loop import *  # noqa: F401,F403
-from jaxgait.train.loop import _batched_rollout, _scorer  # noqa: F401
+Python API (notebooks)::
+
+    from jaxgait.train import train
+    result = train("quickstart", out_dir="runs/quickstart")      # or an Experiment / config.json
+    result.best_params, result.best_score, result.measures
+
+Command line (a thin layer over :func:`train`)::
+
+    python -m jaxgait.train                      # list the experiments
+    python -m jaxgait.train exp7a [--particles N] [--iterations N] [--seed S] [--out DIR]
+        [--resume] [--duration S] [--d-lim M] [--worst-of K] [--set key=value ...] [--no-plots]
+
+Only flags actually given override the experiment (:mod:`jaxgait.train.experiments`). ``--set``
+takes any experiment field, values as JSON (``--set init=null``, ``--set targets.v_desired=1.5``,
+``--set optimiser_options.sigma_init=0.05``; dotted keys merge into mapping fields).
+
+One iteration (thesis 2.2.1, 3.2): ask the optimiser for P parameter sets; draw P x k fresh
+environments (keys from the seed and the iteration); roll all P x k out as one population,
+sharded over the local devices (:func:`population_mesh`); measure each rollout
+(:func:`jaxgait.analysis.measures.compute_measures`), score it (:mod:`jaxgait.train.objective`), keep the worst
+of the k scores per parameter set and tell the optimiser. Every random key is
+``fold_in(PRNGKey(seed), iteration)``, so a run killed at any moment and resumed from its last
+checkpoint ends exactly as an uninterrupted run.
+
+Results folder (``out_dir``, default ``runs/<experiment>``):
+
+* ``config.json``: the experiment and the jaxgait version;
+* ``checkpoints/``: orbax checkpoints of the train state, every iteration, last 3 kept;
+* ``history.csv``: one row per iteration (best so far, best of the iteration, particles per
+  stage, rollouts/s), rewritten after every iteration;
+* ``best.json`` (a preset: ``python -m jaxgait.evaluate runs/exp3``) and ``best_params.txt``
+  (readable table), rewritten whenever the best improves;
+* at the end: ``measures.json`` (the best re-evaluated on the experiment environment) and
+  ``plots/`` (joint angles vs Winter, GRF, activations vs EMG, stick figure and, for stage
+  objectives, ``stage_progress.png``).
+
+Modules: :mod:`~jaxgait.train.experiments` (the registry), :mod:`~jaxgait.train.objective`
+(fitness and stages), :mod:`~jaxgait.train.setup` (config document, model, start),
+:mod:`~jaxgait.train.evaluator` (sharded population rollouts), :mod:`~jaxgait.train.state`
+(the checkpointed iteration state, one iteration), :mod:`~jaxgait.train.results` (files,
+plots, the final re-evaluation), :mod:`~jaxgait.train.checkpoint` (orbax),
+:mod:`~jaxgait.train.loop` (:func:`train`) and :mod:`~jaxgait.train.cli`.
+"""
+
+from jaxgait.train.cli import main, parse_set
+from jaxgait.train.evaluator import (
+    PopulationEvaluator,
+    padded_size,
+    population_mesh,
+    shard_population,
+)
+from jaxgait.train.experiments import EXPERIMENTS, Experiment, get_experiment, list_experiments
+from jaxgait.train.loop import train
+from jaxgait.train.results import final_evaluation, perturbation_check, perturbed_copies
+from jaxgait.train.setup import TrainError, config_document, get_model, resolve_init
+from jaxgait.train.state import TrainResult, TrainState, history_rows, run_iteration
+
+__all__ = [
+    "EXPERIMENTS",
+    "Experiment",
+    "PopulationEvaluator",
+    "TrainError",
+    "TrainResult",
+    "TrainState",
+    "config_document",
+    "final_evaluation",
+    "get_experiment",
+    "get_model",
+    "history_rows",
+    "list_experiments",
+    "main",
+    "padded_size",
+    "parse_set",
+    "perturbation_check",
+    "perturbed_copies",
+    "population_mesh",
+    "resolve_init",
+    "run_iteration",
+    "shard_population",
+    "train",
+]

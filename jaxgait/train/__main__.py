@@ -1,5 +1,7 @@
+"""``python -m jaxgait.train``."""
+
 import sys
 
-from jaxgait.train.loop import main
+from jaxgait.train.cli import main
 
 sys.exit(main())

@@ -56,8 +56,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-#: Model families an experiment may name; availability is checked by :mod:`jaxgait.train`.
-MODELS = ("fbl", "fblplus")
+from jaxgait import models
+
 #: Optimisers (keys of :data:`jaxgait.optim.STRATEGIES`).
 OPTIMISERS = ("pso", "stage_pso", "cmaes")
 #: Version of the config format written to JSON (bump when fields change meaning).
@@ -111,7 +111,7 @@ class Experiment:
     Attributes:
       name: registry name (also the default results folder ``runs/<name>``).
       description: one line.
-      model: model family (``fbl`` or ``fblplus``; checked against :func:`jaxgait.sim.make_model`
+      model: planar model of the registry (``fbl``, ``fblplus``, ...; :mod:`jaxgait.models`
         when the experiment is run).
       env: environment name (:data:`jaxgait.world.envs.ENVIRONMENTS`).
       env_overrides: ((field, value), ...) replaced in the environment config.
@@ -162,9 +162,10 @@ class Experiment:
             raise ExperimentError(f"invalid name={self.name!r}: must be a non-empty string")
         if not isinstance(self.description, str):
             raise ExperimentError("description must be a string")
-        if self.model not in MODELS:
+        if self.model not in models.model_names("planar"):
             raise ExperimentError(
-                f"invalid model={self.model!r}; valid models: {', '.join(MODELS)}"
+                f"invalid model={self.model!r}; valid models: "
+                f"{', '.join(models.model_names('planar'))}"
             )
         if self.optimiser not in OPTIMISERS:
             raise ExperimentError(

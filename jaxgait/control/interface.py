@@ -1,0 +1,107 @@
+"""The controller interface: static data plus pure ``init`` / ``step`` functions.
+
+A :class:`Controller` is what the simulator needs to know of a neural controller:
+
+* its parameter table (:class:`~jaxgait.core.params.ParamTable`: what the optimisers search),
+* the number of muscles per leg it stimulates (the model's muscle table must match),
+* its command inputs (:class:`~jaxgait.control.commands.Command`: the control vector, with
+  defaults, that a schedule or a feedback law may change during a rollout),
+* ``init(ctrl, sensors, dt) -> state``: its own state (any pytree, kept in ``SimState.ctrl``),
+* ``step(ctrl, p, sensors, state, command, dt) -> (stim (2, n_muscles), state)``: this step's
+  stimulation of every muscle from the parameters ``p`` (name -> value, from
+  ``table.unpack``), this step's :class:`Sensors`, its state and the command
+  (name -> value).
+
+``settings`` holds whatever static data the functions read (delays, the law, a network of
+interneurons...), so a new model is a new instance, not a new step.  The simulator builds
+the :class:`Sensors` once per step, shared by the controller and any command law; fields a
+controller does not read cost nothing after XLA's dead-code elimination.
+
+Gait-phase detection (:mod:`jaxgait.control.gait`) is shared by every controller and by the
+logs: ``Sensors.load``, ``stance``, ``touchdown``, ``double_support`` and ``theta_to`` come
+from it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+from flax import struct
+
+from jaxgait.control.commands import Command, names
+from jaxgait.core.params import ParamTable
+
+
+@struct.dataclass
+class Sensors:
+    """What a controller can read at one physics step (legs 0 = right, 1 = left).
+
+    Attributes:
+      t: () time [s].
+      f_mtu: (2, M) muscle-tendon force [N].
+      f_norm: (2, M) force feedback F_mtu / F_max [-] (thesis eq. 2.31).
+      l_ce: (2, M) contractile-element length [m].
+      l_norm: (2, M) length feedback l_ce / l_opt [-] (thesis eq. 2.32, before the offset).
+      phi: (2, 3) hip, knee, ankle angles in the Geyer-Herr convention [rad].
+      dphi: (2, 3) their rates [rad/s].
+      trunk: () trunk pitch, forward lean + [rad]; dtrunk: () its rate [rad/s].
+      load: (2,) filtered ground load per leg / (M g) (thesis eq. 2.34).
+      stance: (2,) bool, leg in stance.
+      touchdown: (2,) bool, the leg touched down at this step.
+      double_support: (2,) bool, trailing leg in double support (stance end).
+      theta_to: (2,) trunk pitch at each leg's last take-off [rad].
+      com: (2,) centre of mass (x, z) [m]; com_vel: (2,) its velocity [m/s].
+      feet: (4, 2) heel_r, ball_r, heel_l, ball_l positions (x, z) [m].
+      dcom: (2,) (x_CoM - x_ball) / foot length per leg [-]: CoM ahead of the ball +.
+    """
+
+    t: jax.Array
+    f_mtu: jax.Array
+    f_norm: jax.Array
+    l_ce: jax.Array
+    l_norm: jax.Array
+    phi: jax.Array
+    dphi: jax.Array
+    trunk: jax.Array
+    dtrunk: jax.Array
+    load: jax.Array
+    stance: jax.Array
+    touchdown: jax.Array
+    double_support: jax.Array
+    theta_to: jax.Array
+    com: jax.Array
+    com_vel: jax.Array
+    feet: jax.Array
+    dcom: jax.Array
+
+
+@dataclass(frozen=True, eq=False)
+class Controller:
+    """A controller as static data plus pure functions (see the module docstring).
+
+    Attributes:
+      name: registry name (also the default model name).
+      table: its parameter table.
+      n_muscles: muscles per leg it stimulates.
+      init: ``(ctrl, sensors, dt) -> state``.
+      step: ``(ctrl, p, sensors, state, command, dt) -> (stim (2, n_muscles), state)``.
+      commands: its command inputs, in control-vector order.
+      settings: static data the functions read.
+      description: one line for listings.
+    """
+
+    name: str
+    table: ParamTable
+    n_muscles: int
+    init: Callable[..., Any]
+    step: Callable[..., tuple[jax.Array, Any]]
+    commands: tuple[Command, ...] = ()
+    settings: Any = None
+    description: str = ""
+
+    @property
+    def command_names(self) -> tuple[str, ...]:
+        return names(self.commands)

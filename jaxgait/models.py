@@ -1,0 +1,142 @@
+"""The model registry: every named model, its family, parameter table and commands.
+
+One place that ``evaluate``, ``train``, ``robustness``, the presets and the experiment
+registry read.  A :class:`ModelSpec` is small frozen data:
+
+* ``family``: ``"planar"`` (a :class:`~jaxgait.control.interface.Controller` on the planar
+  Geyer body, simulated by :mod:`jaxgait.sim`) or ``"taga"`` (Taga's oscillator biped,
+  simulated by :mod:`jaxgait.taga`);
+* ``table``: the parameter table presets and optimisers use (``None`` for Taga, whose
+  presets are :class:`~jaxgait.taga.model.TagaParams` documents);
+* ``build(timestep)``: the model object.
+
+:func:`get_model` is the one cached factory (one instance per name and time step in a
+process, so compiled rollouts are reused).  A new planar model is one :func:`register` call
+with a controller::
+
+    register(planar_spec(my_controller))
+    model = get_model(my_controller.name)
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from jaxgait.control.commands import Command
+from jaxgait.control.fbl import FBL_CONTROLLER
+from jaxgait.control.fblplus import FBLPLUS_CONTROLLER
+from jaxgait.control.interface import Controller
+from jaxgait.core.params import ParamTable
+from jaxgait.sim.model import planar_model
+from jaxgait.taga.sim import COMMANDS as TAGA_COMMANDS
+from jaxgait.taga.sim import default_sim
+
+FAMILIES = ("planar", "taga")
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """One registered model (static data)."""
+
+    name: str
+    family: str
+    description: str
+    table: ParamTable | None
+    commands: tuple[Command, ...]
+    build: Callable[[float | None], Any]
+
+    def __post_init__(self):
+        if self.family not in FAMILIES:
+            raise ValueError(f"model {self.name!r}: family {self.family!r} not in {FAMILIES}")
+
+
+def planar_spec(controller: Controller, description: str | None = None) -> ModelSpec:
+    """The spec of ``controller`` on the planar Geyer body (:func:`jaxgait.sim.planar_model`)."""
+
+    def build(timestep=None):
+        return planar_model(controller, timestep)
+
+    return ModelSpec(
+        name=controller.name,
+        family="planar",
+        description=description or controller.description,
+        table=controller.table,
+        commands=controller.commands,
+        build=build,
+    )
+
+
+def _taga_build(timestep=None):
+    return default_sim(timestep)
+
+
+
+_REGISTRY: dict[str, ModelSpec] = {}
+
+
+@functools.lru_cache(maxsize=16)
+def get_model(name: str = "fbl", timestep: float | None = None):
+    """The model object of ``name`` (cached per name and time step [s])."""
+    return get_spec(name).build(timestep)
+
+
+def register(spec: ModelSpec, replace: bool = False) -> ModelSpec:
+    """Add ``spec`` to the registry (``replace`` to redefine a name); returns it."""
+    if spec.name in _REGISTRY and not replace:
+        raise ValueError(f"model {spec.name!r} is already registered")
+    _REGISTRY[spec.name] = spec
+    get_model.cache_clear()
+    return spec
+
+
+def unregister(name: str) -> None:
+    """Remove a model (e.g. one a test registered)."""
+    _REGISTRY.pop(name, None)
+    get_model.cache_clear()
+
+
+register(planar_spec(FBL_CONTROLLER))
+register(planar_spec(FBLPLUS_CONTROLLER))
+register(
+    ModelSpec(
+        name="taga",
+        family="taga",
+        description="Taga 1991 neural-oscillator biped (5 links, 12 Matsuoka neurons)",
+        table=None,
+        commands=TAGA_COMMANDS,
+        build=_taga_build,
+    )
+)
+
+
+def model_names(family: str | None = None) -> tuple[str, ...]:
+    """Registered names, in registration order (only ``family``'s if given)."""
+    return tuple(n for n, s in _REGISTRY.items() if family is None or s.family == family)
+
+
+def get_spec(name: str) -> ModelSpec:
+    """The :class:`ModelSpec` of ``name``; ``KeyError`` listing the registered names."""
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise KeyError(
+            f"unknown model {name!r}; registered: {', '.join(model_names())}"
+        ) from None
+
+
+def param_tables() -> dict[str, ParamTable]:
+    """Parameter table name -> table, of every registered model that has one."""
+    return {s.table.name: s.table for s in _REGISTRY.values() if s.table is not None}
+
+
+def describe_models() -> str:
+    """One line per registered model: name, family, parameters, commands, description."""
+    lines = []
+    for s in _REGISTRY.values():
+        n = f"{s.table.size} parameters" if s.table is not None else "preset parameters"
+        cmds = ", ".join(c.name for c in s.commands) or "none"
+        lines.append(f"{s.name:<10} {s.family:<7} {n:<18} commands: {cmds:<32} {s.description}")
+    return "\n".join(lines)

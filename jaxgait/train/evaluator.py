@@ -1,0 +1,177 @@
+"""The population evaluator: P x k rollouts sharded over the local devices, scored."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+from jaxgait.train import objective as objective_mod
+from jaxgait.train.experiments import (
+    Experiment,
+)
+from jaxgait.train.setup import POP_AXIS, TrainError, get_model
+
+# ------------------------------------------------------------------------------- devices
+
+
+def population_mesh(devices: Sequence | None = None) -> Mesh:
+    """1-D mesh ``("pop",)`` over ``devices`` (default: all local devices)."""
+    devs = list(jax.local_devices() if devices is None else devices)
+    if not devs:
+        raise TrainError("no devices to run on")
+    return Mesh(np.array(devs), (POP_AXIS,))
+
+
+def shard_population(tree: Any, mesh: Mesh) -> Any:
+    """Put every leaf's leading (population) axis across the mesh (size a multiple of it)."""
+    sharding = NamedSharding(mesh, PartitionSpec(POP_AXIS))
+    return jax.device_put(tree, sharding)
+
+
+def padded_size(n: int, n_devices: int, batch_size: int | None) -> tuple[int, int]:
+    """(rows per device call, number of calls) for n rollouts on n_devices.
+
+    A call holds ``batch_size`` rollouts (default all n), rounded up to a multiple of the device
+    count; the population is padded with copies of row 0 to ``calls x rows``.
+    """
+    rows = n if batch_size is None else min(batch_size, n)
+    rows = -(-rows // n_devices) * n_devices
+    return rows, -(-n // rows)
+
+
+@functools.lru_cache(maxsize=16)
+def _batched_rollout(model_name: str, cfg):
+    """jit(vmap(rollout)) with the distance limit and the initial speed as traced arguments.
+
+    ``cfg.d_lim`` is only compared with the distance in :func:`jaxgait.sim.step` and ``cfg.v0``
+    only sets the initial velocity in :func:`jaxgait.sim.initial_state`, so both are passed as
+    arrays: experiments that differ only in them share one compiled rollout. ``run(params,
+    env, d_lim, v0)``.
+    """
+    from jaxgait import sim
+
+    model = get_model(model_name)
+
+    def run(params, env, d_lim, v0):
+        c = dataclasses.replace(cfg, d_lim=d_lim, v0=v0)
+        trace, events, summary, _ = jax.vmap(lambda p, e: sim.rollout(model, c, p, e))(params, env)
+        return trace, events, summary
+
+    return jax.jit(run)
+
+
+@functools.lru_cache(maxsize=32)
+def _scorer(objective):
+    """jit: rollouts -> (stage (B,), value (B,), valid (B,)) for ``objective`` (hashable)."""
+    from jaxgait.analysis.measures import compute_measures
+
+    measure = jax.vmap(functools.partial(compute_measures, skip=2))
+
+    def score(trace, events, summary, max_stage):
+        m = measure(trace, events, summary)
+        valid = objective_mod.rollout_valid(trace, summary)
+        stage, value = objective.fitness(m, valid, max_stage)
+        return stage, value, valid
+
+    return jax.jit(score)
+
+
+@functools.lru_cache(maxsize=16)
+def _ask_tell(strategy):
+    return jax.jit(strategy.ask), jax.jit(strategy.tell)
+
+
+class PopulationEvaluator:
+    """Rolls a population out (sharded over devices) and scores it with worst-of-k.
+
+    Args:
+      exp: the experiment (model, environment, duration, d_lim, k, batch size, objective).
+      devices: devices of the population mesh (default all local devices).
+    """
+
+    def __init__(self, exp: Experiment, devices: Sequence | None = None):
+        from jaxgait import sim
+
+        self.exp = exp
+        self.model = get_model(exp.model)
+        self.mesh = population_mesh(devices)
+        self.n_devices = self.mesh.devices.size
+        self.sim_cfg = sim.SimConfig(duration=exp.duration)
+        self.env_cfg = exp.env_config()
+        self.objective = exp.objective()
+        self.rollout = _batched_rollout(exp.model, self.sim_cfg)
+        self.score = _scorer(self.objective)
+        #: rollouts per device call: every call has this shape, so one compilation serves
+        #: the iterations and the final evaluation.
+        self.rows = padded_size(exp.particles * exp.worst_of_k, self.n_devices, exp.batch_size)[0]
+        self.d_lim = jnp.asarray(exp.d_lim if math.isfinite(exp.d_lim) else jnp.inf, jnp.float32)
+        self.v0 = jnp.asarray(exp.v0, jnp.float32)
+
+    def run(self, params: jax.Array, env_keys: jax.Array):
+        """Raw rollouts of (B, D) params on the environments of (B,) keys, chunked and padded.
+
+        Every call holds :attr:`rows` rollouts (padded with copies of row 0). Yields
+        ``(real, trace, events, summary)`` per call; ``real`` are the indices (into ``params``)
+        of the unpadded rows, which come first in the call.
+        """
+        from jaxgait.world import envs
+
+        n = params.shape[0]
+        rows = self.rows
+        calls = -(-n // rows)
+        env_all = envs.make_env_batch(self.env_cfg, env_keys)
+        for c in range(calls):
+            idx = np.arange(c * rows, (c + 1) * rows)
+            real = idx[idx < n]
+            idx = np.where(idx < n, idx, 0)
+            p = shard_population(jnp.asarray(params)[idx], self.mesh)
+            e = shard_population(jax.tree.map(lambda x, i=idx: x[i], env_all), self.mesh)
+            yield real, *self.rollout(p, e, self.d_lim, self.v0)
+
+    def scores(self, params: jax.Array, env_keys: jax.Array, max_stage=None, keep_first=False):
+        """Per-rollout ``(stage (B,), value (B,), valid (B,))`` (NumPy) of (B, D) params.
+
+        ``max_stage``: optional (B,) cap of the stage (thesis 2.2.1.2); none by default.
+        ``keep_first``: also return the (trace, events, summary) of row 0 (NumPy).
+        """
+        first = None
+        n = params.shape[0]
+        cap = np.full(n, self.objective.n_stages, np.int32) if max_stage is None else max_stage
+        stage = np.zeros(n, np.int32)
+        value = np.zeros(n, np.float64)
+        valid = np.zeros(n, bool)
+        for real, trace, events, summary in self.run(params, env_keys):
+            m = real.size
+            rows = trace.t.shape[0]
+            ms = np.concatenate([np.asarray(cap)[real], np.zeros(rows - m, np.int32)])
+            s, v, ok = self.score(trace, events, summary, jnp.asarray(ms))
+            stage[real], value[real], valid[real] = (np.asarray(a)[:m] for a in (s, v, ok))
+            if keep_first and first is None:
+                first = jax.tree.map(lambda x: np.asarray(x[0]), (trace, events, summary))
+        if keep_first:
+            return stage, value, valid, first
+        return stage, value, valid
+
+    def evaluate(self, population: jax.Array, key: jax.Array, max_stage=None):
+        """Worst-of-k ``(stage (P,), value (P,), n_failed_rollouts)`` of a (P, D) population.
+
+        Each parameter set is rolled out on k fresh environments drawn from ``key``.
+        """
+        P, k = population.shape[0], self.exp.worst_of_k
+        stage, value, valid = self.scores(
+            jnp.repeat(population, k, axis=0),
+            jax.random.split(key, P * k),
+            None if max_stage is None else np.repeat(np.asarray(max_stage, np.int32), k),
+        )
+        ws, wv = objective_mod.worst_of_k(
+            jnp.asarray(stage.reshape(P, k)), jnp.asarray(value.reshape(P, k))
+        )
+        return ws, wv.astype(jnp.float32), int((~valid).sum())
