@@ -121,7 +121,9 @@ def run_all(seconds: float = 3.0) -> dict[str, str]:
     active = {"kp_HFL": 1.5, "kd_HFL": 0.2, "kp_GLU": 1.5, "kp_VAS": 1.0, "d_sw_end": -0.5}
     pplus = jnp.asarray(np.stack([np.asarray(vplus), lift_fbl(vec, active)]), jnp.float32)
     fp = sim.make_rollout(get_model("fblplus"), cfg, batched=True)
-    d.update(_rollout_digests("fblplus", jax.device_get(fp(pplus, envs.make_env_batch("flat", keys)))))
+    d.update(
+        _rollout_digests("fblplus", jax.device_get(fp(pplus, envs.make_env_batch("flat", keys))))
+    )
 
     # one unbatched rollout
     f1 = sim.make_rollout(fbl, sim.SimConfig(duration=2.0), batched=False)
@@ -170,8 +172,10 @@ def compare(new: dict, old: dict) -> int:
     diff = sorted(k for k in new if k in old and new[k] != old[k])
     only_new = sorted(set(new) - set(old))
     only_old = sorted(set(old) - set(new))
-    print(f"identical: {len(same)}  different: {len(diff)}  new only: {len(only_new)}  "
-          f"old only: {len(only_old)}")
+    print(
+        f"identical: {len(same)}  different: {len(diff)}  new only: {len(only_new)}  "
+        f"old only: {len(only_old)}"
+    )
     for k in diff:
         print(f"  DIFFERENT {k}: {old[k]} -> {new[k]}")
     for k in only_new:
@@ -190,8 +194,10 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     d = run_all(a.seconds)
     a.out.write_text(json.dumps(d, indent=1, sort_keys=True) + "\n")
-    print(f"{len(d)} digests in {time.perf_counter() - t0:.0f} s -> {a.out} "
-          f"(jax {jax.__version__}, {os.cpu_count()} cpus)")
+    print(
+        f"{len(d)} digests in {time.perf_counter() - t0:.0f} s -> {a.out} "
+        f"(jax {jax.__version__}, {os.cpu_count()} cpus)"
+    )
     if a.compare:
         return compare(d, json.loads(a.compare.read_text()))
     return 0

@@ -194,7 +194,15 @@ def breakdown(batch: int, steps: int, repeats: int) -> list[dict]:
 
     full = (s0, params, env)
     add("full step", scan_step(model), full)
-    add("no reflex law (constant stim)", scan_step(dataclasses.replace(model, law=const_law)), full)
+    ctrl = model.controller
+    const_ctrl = dataclasses.replace(
+        ctrl, settings=dataclasses.replace(ctrl.settings, law=const_law)
+    )
+    add(
+        "no reflex law (constant stim)",
+        scan_step(dataclasses.replace(model, controller=const_ctrl)),
+        full,
+    )
     more = cfg.ce_solve_iters + 1
     add(
         f"full step, CE solve with {more} iterations (default {cfg.ce_solve_iters})",

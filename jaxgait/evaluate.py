@@ -12,7 +12,8 @@ Command line::
 field; ``--model`` must agree with it. Without ``--json`` a readable table is printed; with
 ``--json`` exactly one JSON object (see :func:`evaluate` for its keys; non-finite numbers
 are ``null``). ``--save-trajectory`` writes the alive samples as CSV
-(:mod:`jaxgait.analysis.trajectory_io`), ``--plots`` the figures of :func:`jaxgait.analysis.plots.plot_all`,
+(:mod:`jaxgait.analysis.trajectory_io`), ``--plots`` the figures of
+:func:`jaxgait.analysis.plots.plot_all`,
 ``--save-scene`` an MJCF scene of the body on the environment's terrain over the walked range
 (:mod:`jaxgait.world.scene`; open it with ``python -m mujoco.viewer --mjcf PATH``).
 
@@ -330,7 +331,8 @@ def _parser() -> argparse.ArgumentParser:
         help="write the trajectory CSV to PATH; its columns root_x_m, root_z_m, "
         "trunk_lean_deg, hip_r_deg, knee_r_deg, ankle_r_deg, hip_l_deg, knee_l_deg, "
         "ankle_l_deg (degrees converted to radians) are the qpos of the --save-scene model, "
-        "row by row (jaxgait.world.scene.trajectory_qpos): set data.qpos and call mujoco.mj_forward "
+        "row by row (jaxgait.world.scene.trajectory_qpos): set data.qpos and call "
+        "mujoco.mj_forward "
         "to replay",
     )
     p.add_argument(

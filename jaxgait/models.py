@@ -73,7 +73,6 @@ def _taga_build(timestep=None):
     return default_sim(timestep)
 
 
-
 _REGISTRY: dict[str, ModelSpec] = {}
 
 
@@ -122,9 +121,7 @@ def get_spec(name: str) -> ModelSpec:
     try:
         return _REGISTRY[name]
     except KeyError:
-        raise KeyError(
-            f"unknown model {name!r}; registered: {', '.join(model_names())}"
-        ) from None
+        raise KeyError(f"unknown model {name!r}; registered: {', '.join(model_names())}") from None
 
 
 def param_tables() -> dict[str, ParamTable]:

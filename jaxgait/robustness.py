@@ -1,4 +1,6 @@
-"""Robustness of a walking preset from the command line (library: :mod:`jaxgait.analysis.robustness`).
+"""Robustness of a walking preset from the command line.
+
+The library is :mod:`jaxgait.analysis.robustness`.
 
 Command line::
 

@@ -165,24 +165,32 @@ def _leaves_equal(a, b):
 
 
 def test_a_schedule_of_the_defaults_changes_nothing(fblplus_run):
+    """Bit for bit with one knot; with several knots the command depends on the time, XLA
+    compiles the step differently and the rollouts agree to float32 rounding."""
     model, f, ref = fblplus_run
-    defaults = {c.name: c.default for c in model.controller.commands}
-    same = f(cmd.schedule(model.controller.commands, [(0.0, defaults), (0.4, defaults)]))
-    _leaves_equal(ref, same)
+    c = model.controller.commands
+    defaults = {x.name: x.default for x in c}
+    _leaves_equal(ref, f(cmd.constant(c, **defaults)))
+    two = f(cmd.schedule(c, [(0.0, defaults), (0.4, defaults)]))
+    np.testing.assert_allclose(np.asarray(two[0].qpos), np.asarray(ref[0].qpos), atol=1e-4)
+    assert abs(float(two[2].distance) - float(ref[2].distance)) < 1e-3
+    np.testing.assert_array_equal(np.asarray(two[0].alive), np.asarray(ref[0].alive))
 
 
 def test_a_command_changed_mid_rollout_changes_the_trace_only_after(fblplus_run):
-    model, f, ref = fblplus_run
+    model, f, _ = fblplus_run
+    c = model.controller.commands
     t_switch = 0.3
-    s = cmd.schedule(model.controller.commands, [(0.0, {}), (t_switch, {"lean_offset": 0.1})])
-    trace = f(s)[0]
-    t = np.asarray(ref[0].t)
+    # the same compiled program (two knots) for the reference and the switch
+    ref = f(cmd.schedule(c, [(0.0, {}), (t_switch, {})]))[0]
+    trace = f(cmd.schedule(c, [(0.0, {}), (t_switch, {"lean_offset": 0.1})]))[0]
+    t = np.asarray(ref.t)
     before, after = t < t_switch - 1e-6, t > t_switch + 1e-6
     for name in ("qpos", "stim", "act", "grf"):
-        a, b = np.asarray(getattr(ref[0], name)), np.asarray(getattr(trace, name))
+        a, b = np.asarray(getattr(ref, name)), np.asarray(getattr(trace, name))
         np.testing.assert_array_equal(a[before], b[before], err_msg=name)
     # the lean reference moved: the hip stimulation differs right after the switch
-    assert np.abs(np.asarray(ref[0].stim)[after] - np.asarray(trace.stim)[after]).max() > 1e-3
+    assert np.abs(np.asarray(ref.stim)[after] - np.asarray(trace.stim)[after]).max() > 1e-3
 
 
 def _set_lean(value):
@@ -208,8 +216,8 @@ def test_a_command_law_runs_inside_the_step():
         cmd.constant(model.controller.commands, lean_offset=0.05)
     )
     _leaves_equal(law[0], sch[0])
-    n_steps = round(0.2 / model.dt)
-    assert int(law[3].command_state) == n_steps
+    # one law step per physics step (the rollout runs on to its chunk end)
+    assert int(law[3].command_state) == round(float(law[3].t) / model.dt)
 
 
 def test_schedules_vmap_like_environments():

@@ -1,4 +1,4 @@
-"""Tests of jaxgait.muscles.energy against hand-computed values (thesis eq. 2.41-2.44, Wang 2012)."""
+"""jaxgait.muscles.energy against hand-computed values (thesis eq. 2.41-2.44, Wang 2012)."""
 
 import math
 

@@ -153,7 +153,8 @@ def plot_joint_angles(
       n_cycles: number of last full right cycles averaged (mean +- SD).
       reference: human curves; default Winter normal walking (mean +- SD band).
       correlations: ``corr_hip``, ``corr_knee``, ``corr_ankle`` for the title (e.g. from
-        :func:`jaxgait.analysis.measures.compute_measures`); computed here (last full cycle) if None.
+        :func:`~jaxgait.analysis.measures.compute_measures`); computed here (last full cycle)
+        if None.
 
     Returns:
       The path written.
@@ -501,8 +502,8 @@ def plot_all(
       model: the :class:`~jaxgait.sim.Model` (muscle names, body geometry).
       terrain: the rollout's :class:`~jaxgait.world.terrain.Terrain` or
         :class:`~jaxgait.world.envs.Env` (stick-figure ground line; flat z = 0 if None).
-      measures_dict: output of :func:`jaxgait.analysis.measures.compute_measures` (correlations in the
-        joint-angle title); computed if None.
+      measures_dict: output of :func:`~jaxgait.analysis.measures.compute_measures`
+        (correlations in the joint-angle title); computed if None.
       n_cycles: number of last cycles averaged in the cycle figures.
 
     Returns:

@@ -120,7 +120,9 @@ def schedule(
         try:
             t, row = item
         except (TypeError, ValueError):
-            raise CommandError(f"knot {k}: expected (time, {{name: value}}), got {item!r}") from None
+            raise CommandError(
+                f"knot {k}: expected (time, {{name: value}}), got {item!r}"
+            ) from None
         if isinstance(t, bool) or not isinstance(t, (int, float)) or not np.isfinite(t):
             raise CommandError(f"knot {k}: time {t!r} is not a finite number")
         if times and t < times[-1]:

@@ -5,9 +5,12 @@ three ring buffers (5 ms hip, 10 ms knee, 20 ms ankle muscles); the stimulation 
 pure function of a delayed sensor vector and the parameter dict, evaluated once per delay
 group, and each muscle takes the result of its own group.
 
-Phases per leg: stance (filtered ground load above a threshold, with hysteresis), swing, and
-stance end (trailing leg in double support: both legs loaded and the other leg touched down
-last).
+It is one instance of the controller interface (:data:`FBL_CONTROLLER`, built by
+:func:`reflex_controller`; FBL+ is another).  The phases per leg come from the shared
+gait-phase detection (:mod:`jaxgait.control.gait`): stance (filtered ground load above a
+threshold, with hysteresis), swing, and stance end (trailing leg in double support: both
+legs loaded and the other leg touched down last).  The command ``lean_offset`` [rad] is
+added to theta_ref (0 by default).
 
 Stance (Table 2.4), with e = theta - theta_ref, u_i = k_pi e + k_d dtheta, Fb_g = k_bw F/(Mg):
   SOL = S0 + G_SOL F_SOL

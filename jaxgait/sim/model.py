@@ -83,15 +83,6 @@ POSES = {
 }
 
 
-#: Initial postures, Winter convention in degrees: (trunk pitch, (hip, knee, ankle) of the
-#: stance leg (right), (hip, knee, ankle) of the swing leg (left)).  "geyer" is Geyer's
-#: nms_model_ControlInit start (GH angles stance 85/175/175, swing 90/175/140 with the
-#: stance foot flat, hence a 5 deg trunk lean); geyer_reference.md section 4.
-POSES = {
-    "geyer": (5.0, (5.0, 5.0, 5.0), (40.0, 5.0, 0.0)),
-}
-
-
 @struct.dataclass
 class SimState:
     """Everything that evolves during a rollout (a pytree; batch it with vmap)."""

@@ -78,7 +78,8 @@ def rollout(
     trace0 = jax.tree.map(lambda x: jnp.zeros((n_chunks * rpc,) + x.shape, x.dtype), row0)
 
     def one_row(s, _):
-        s = jax.lax.fori_loop(0, log_every, lambda i, s: step(model, cfg, params, env, s, commands, command_law), s
+        s = jax.lax.fori_loop(
+            0, log_every, lambda i, s: step(model, cfg, params, env, s, commands, command_law), s
         )
         return s, _log_row(model, s, ~s.done)
 

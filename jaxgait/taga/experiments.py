@@ -36,7 +36,8 @@ import numpy as np
 from jaxgait.control import commands
 from jaxgait.taga import measures, network, plots
 from jaxgait.taga.model import TagaParams
-from jaxgait.taga.sim import COMMANDS, default_sim, no_push, push_on, simulate
+from jaxgait.taga.sim import COMMANDS as DRIVE
+from jaxgait.taga.sim import default_sim, no_push, push_on, simulate
 from jaxgait.world import terrain as terr
 
 WALK_U0 = 5.5  # Fig. 5
@@ -668,7 +669,8 @@ def fig11(out: Path, quick: bool = False) -> dict:
     levels = np.array(up + down)
     log_dt = 0.01
     per = int(round(plateau / log_dt))
-    drive = commands.schedule(COMMANDS, [(k * plateau, {"u0": float(u)}) for k, u in enumerate(levels)])
+    knots = [(k * plateau, {"u0": float(u)}) for k, u in enumerate(levels)]
+    drive = commands.schedule(DRIVE, knots)  # u0 held at each level for one plateau
     cap = int(len(levels) * plateau * 6)
     st, log = simulate(
         TagaParams(u0=levels[0]),

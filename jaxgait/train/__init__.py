@@ -1,4 +1,4 @@
-"""Layer 11, training: run an optimisation experiment: population rollouts, fitness, optimiser, checkpoints, results.
+"""Layer 11, training: population rollouts, fitness, optimiser, checkpoints, results.
 
 Python API (notebooks)::
 
@@ -19,8 +19,9 @@ takes any experiment field, values as JSON (``--set init=null``, ``--set targets
 One iteration (thesis 2.2.1, 3.2): ask the optimiser for P parameter sets; draw P x k fresh
 environments (keys from the seed and the iteration); roll all P x k out as one population,
 sharded over the local devices (:func:`population_mesh`); measure each rollout
-(:func:`jaxgait.analysis.measures.compute_measures`), score it (:mod:`jaxgait.train.objective`), keep the worst
-of the k scores per parameter set and tell the optimiser. Every random key is
+(:func:`~jaxgait.analysis.measures.compute_measures`), score it
+(:mod:`~jaxgait.train.objective`), keep the worst of the k scores per parameter set and tell the
+optimiser. Every random key is
 ``fold_in(PRNGKey(seed), iteration)``, so a run killed at any moment and resumed from its last
 checkpoint ends exactly as an uninterrupted run.
 

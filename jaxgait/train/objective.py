@@ -1,6 +1,7 @@
 """Fitness of a population of rollouts: weighted objectives and stage fitness (thesis 2.2.1-2.2.3).
 
-Two kinds of objective turn the measures of :func:`jaxgait.analysis.measures.compute_measures` into a
+Two kinds of objective turn the measures of
+:func:`jaxgait.analysis.measures.compute_measures` into a
 score, both MAXIMISED here (the optimisers' conventions are applied by :func:`to_tell`):
 
 * :class:`WeightedObjective`, the single-function objectives of thesis 2.2.3,
@@ -110,7 +111,8 @@ class ObjectiveError(ValueError):
 
 
 def resolve_criterion(name: str) -> str:
-    """Canonical name of a criterion of :mod:`jaxgait.analysis.criteria` or of :data:`EXTRA_CRITERIA`."""
+    """Canonical name of a criterion of :mod:`jaxgait.analysis.criteria` or of
+    :data:`EXTRA_CRITERIA`."""
     key = str(name).strip().lower()
     if key in EXTRA_CRITERIA:
         return key

@@ -355,7 +355,8 @@ class RandomPushEnv(EnvConfig):
 
 @dataclass(frozen=True)
 class WavyEnv(EnvConfig, WavyConfig):
-    """Environment 4: wavy ground, no pushes; fields of :class:`~jaxgait.world.terrain.WavyConfig`."""
+    """Environment 4: wavy ground, no pushes; fields of
+    :class:`~jaxgait.world.terrain.WavyConfig`."""
 
     def __post_init__(self):
         EnvConfig.__post_init__(self)

@@ -86,7 +86,8 @@ def scene_xml(
     """MJCF text of the body ``model`` on the terrain over [x0, x1] (display only).
 
     Args:
-      terrain_or_env: a :class:`~jaxgait.world.terrain.Terrain` or an :class:`~jaxgait.world.envs.Env`
+      terrain_or_env: a :class:`~jaxgait.world.terrain.Terrain` or an
+        :class:`~jaxgait.world.envs.Env`
         (its ``terrain``); one environment, not a batch.
       x0, x1: extent of the shown ground along x [m], x1 > x0.
       model: MJCF in the models folder (:func:`jaxgait.core.resources.model_path`).
@@ -211,7 +212,8 @@ def trajectory_qpos(traj: dict) -> np.ndarray:
     """(R, 9) qpos rows of ``models/fbl_planar.xml`` from a trajectory CSV.
 
     Args:
-      traj: :func:`jaxgait.analysis.trajectory_io.read_trajectory_csv` output (column -> (R,) array).
+      traj: :func:`~jaxgait.analysis.trajectory_io.read_trajectory_csv` output (column -> (R,)
+        array).
 
     Returns:
       (root_x, root_z, trunk_pitch, hip_r, knee_r, ankle_r, hip_l, knee_l, ankle_l) per row
