@@ -39,7 +39,15 @@ import numpy as np
 #: the reflex controllers, the delay line that was ``reflex.lines``).
 ALIASES: dict[str, str] = {".gait.": ".reflex.", ".ctrl.": ".reflex.lines."}
 
-TIMING_COLUMNS = ("wall_s", "elapsed_s", "time_s", "eta_s", "rollouts_per_s", "seconds")
+TIMING_COLUMNS = (
+    "wall_s",
+    "elapsed_s",
+    "time_s",
+    "eta_s",
+    "rollouts_per_s",
+    "seconds",
+    "env_steps_per_s",
+)
 
 
 def _digest(x) -> str:

@@ -51,6 +51,47 @@ def rollout_steps(cfg: SimConfig, dt: float) -> tuple[int, int, int]:
     return log_every, rows_per_chunk, n_chunks
 
 
+def empty_trace(model: Model, cfg: SimConfig, s0: SimState) -> Trace:
+    """A zero trace buffer of ``n_chunks * rows_per_chunk`` rows shaped like :func:`_log_row`."""
+    _, rpc, n_chunks = rollout_steps(cfg, model.dt)
+    row0 = _log_row(model, s0, jnp.ones((), bool))
+    return jax.tree.map(lambda x: jnp.zeros((n_chunks * rpc,) + x.shape, x.dtype), row0)
+
+
+def run_chunk(
+    model: Model,
+    cfg: SimConfig,
+    params,
+    env: Env,
+    s: SimState,
+    commands: Schedule | None = None,
+    command_law: CommandLaw | None = None,
+):
+    """One chunk (``rows_per_chunk`` logged rows) from ``s``: ``(state, rows)``."""
+    log_every, rpc, _ = rollout_steps(cfg, model.dt)
+
+    def one_row(s, _):
+        s = jax.lax.fori_loop(
+            0, log_every, lambda i, s: step(model, cfg, params, env, s, commands, command_law), s
+        )
+        return s, _log_row(model, s, ~s.done)
+
+    return jax.lax.scan(one_row, s, None, length=rpc)
+
+
+def summary_of(model: Model, s: SimState) -> Summary:
+    """The :class:`Summary` of a final state (a rollout that never reached "done" is closed
+    at its current time; the duration normally stops it)."""
+    return Summary(
+        duration=jnp.where(s.done, s.end_t, s.t),
+        distance=jnp.where(s.done, s.end_x, model.points(s.qpos, 0.0 * s.t)[7, 0]) - s.x0,
+        fell=s.fell,
+        energy=jnp.where(s.done, s.end_energy, s.energy),
+        trunk_lean_sum=jnp.where(s.done, s.end_lean, s.lean_sum),
+        mass=jnp.asarray(model.mass, s.t.dtype),
+    )
+
+
 def rollout(
     model: Model,
     cfg: SimConfig,
@@ -72,20 +113,13 @@ def rollout(
     Returns (trace: Trace with leading time axis, events: Events, summary: Summary,
     final state).  Stops at the first chunk end after the rollout is done.
     """
-    log_every, rpc, n_chunks = rollout_steps(cfg, model.dt)
+    _, rpc, n_chunks = rollout_steps(cfg, model.dt)
     s0 = initial_state(model, params, env, cfg, commands, command_law)
-    row0 = _log_row(model, s0, jnp.ones((), bool))
-    trace0 = jax.tree.map(lambda x: jnp.zeros((n_chunks * rpc,) + x.shape, x.dtype), row0)
-
-    def one_row(s, _):
-        s = jax.lax.fori_loop(
-            0, log_every, lambda i, s: step(model, cfg, params, env, s, commands, command_law), s
-        )
-        return s, _log_row(model, s, ~s.done)
+    trace0 = empty_trace(model, cfg, s0)
 
     def chunk(carry):
         k, s, trace = carry
-        s, rows = jax.lax.scan(one_row, s, None, length=rpc)
+        s, rows = run_chunk(model, cfg, params, env, s, commands, command_law)
         trace = jax.tree.map(
             lambda buf, r: jax.lax.dynamic_update_slice_in_dim(buf, r, k * rpc, 0), trace, rows
         )
@@ -98,16 +132,7 @@ def rollout(
     _, s, trace = jax.lax.while_loop(cond, chunk, (jnp.zeros((), jnp.int32), s0, trace0))
     n_rows = math.ceil(cfg.duration / cfg.log_dt)
     trace = jax.tree.map(lambda x: x[:n_rows], trace)
-    # a rollout that never reached "done" is closed here (the duration normally stops it)
-    summary = Summary(
-        duration=jnp.where(s.done, s.end_t, s.t),
-        distance=jnp.where(s.done, s.end_x, model.points(s.qpos, 0.0 * s.t)[7, 0]) - s.x0,
-        fell=s.fell,
-        energy=jnp.where(s.done, s.end_energy, s.energy),
-        trunk_lean_sum=jnp.where(s.done, s.end_lean, s.lean_sum),
-        mass=jnp.asarray(model.mass, s.t.dtype),
-    )
-    return trace, s.events, summary, s
+    return trace, s.events, summary_of(model, s), s
 
 
 def make_rollout(

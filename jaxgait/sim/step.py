@@ -52,6 +52,39 @@ def scheduled_command(model: Model, commands: Schedule | None, t, dtype):
     return commands.at(t).astype(dtype)
 
 
+def sensors_of(
+    model: Model, t, f_mtu, l_ce, phi, dphi, qpos, qvel, gait, touchdown, ds, pts, com_vel
+) -> Sensors:
+    """The shared :class:`~jaxgait.control.interface.Sensors` of one step.
+
+    Args: time [s]; f_mtu, l_ce (2, M) [N, m]; phi, dphi (2, 3) GH angles and rates; qpos,
+    qvel the generalised state; gait: the updated :class:`~jaxgait.control.gait.GaitState`;
+    touchdown, ds (2,) bool; pts (9, 2) the points of :meth:`Model.points`; com_vel (2,).
+    """
+    table = model.muscles
+    dtype = qpos.dtype
+    return Sensors(
+        t=t,
+        f_mtu=f_mtu,
+        f_norm=f_mtu / jnp.maximum(jnp.asarray(table.f_max, dtype), 1e-9),
+        l_ce=l_ce,
+        l_norm=l_ce / jnp.asarray(table.l_opt, dtype),
+        phi=phi,
+        dphi=dphi,
+        trunk=qpos[2],
+        dtrunk=qvel[2],
+        load=gait.load,
+        stance=gait.stance,
+        touchdown=touchdown,
+        double_support=ds,
+        theta_to=gait.theta_to,
+        com=pts[7],
+        com_vel=com_vel,
+        feet=pts[:4],
+        dcom=(pts[7, 0] - pts[[1, 3], 0]) / model.foot_length,
+    )
+
+
 # ------------------------------------------------------------------------- init
 def initial_state(
     model: Model,
@@ -90,25 +123,20 @@ def initial_state(
     mstate = mus.MuscleState(act=act, l_ce=l_ce)
     f_mtu = mus.mtu_force(table, act, l_ce, l_mtu)
     gait = init_gait([1.0, 0.0], [True, False], qpos[2], dtype)
-    sensors0 = Sensors(
-        t=jnp.zeros((), dtype),
-        f_mtu=f_mtu,
-        f_norm=f_mtu / jnp.maximum(jnp.asarray(table.f_max, dtype), 1e-9),
-        l_ce=l_ce,
-        l_norm=l_ce / jnp.asarray(table.l_opt, dtype),
-        phi=phi,
-        dphi=jnp.zeros_like(phi),
-        trunk=qpos[2],
-        dtrunk=qvel[2],
-        load=gait.load,
-        stance=gait.stance,
-        touchdown=jnp.zeros(2, bool),
-        double_support=jnp.zeros(2, bool),
-        theta_to=gait.theta_to,
-        com=pts[7],
-        com_vel=jac[7] @ qvel,
-        feet=pts[:4],
-        dcom=(pts[7, 0] - pts[[1, 3], 0]) / model.foot_length,
+    sensors0 = sensors_of(
+        model,
+        jnp.zeros((), dtype),
+        f_mtu,
+        l_ce,
+        phi,
+        jnp.zeros_like(phi),
+        qpos,
+        qvel,
+        gait,
+        jnp.zeros(2, bool),
+        jnp.zeros(2, bool),
+        pts,
+        jac[7] @ qvel,
     )
     ctrl = model.controller
     ctrl_state = ctrl.init(ctrl, sensors0, model.dt)
@@ -250,26 +278,9 @@ def step(
     mg = model.mass * 9.81
 
     # 6. gait phases, the shared sensors, the command, then the controller
-    gait, stance, td, ds = update_gait(model.gait, s.gait, grf[:, 1], mg, s.t, s.qpos[2], dt)
-    sensors = Sensors(
-        t=s.t,
-        f_mtu=f_mtu,
-        f_norm=f_mtu / jnp.maximum(jnp.asarray(table.f_max, dtype), 1e-9),
-        l_ce=s.muscle.l_ce,
-        l_norm=s.muscle.l_ce / jnp.asarray(table.l_opt, dtype),
-        phi=phi,
-        dphi=dphi,
-        trunk=s.qpos[2],
-        dtrunk=s.qvel[2],
-        load=gait.load,
-        stance=stance,
-        touchdown=td,
-        double_support=ds,
-        theta_to=gait.theta_to,
-        com=pts[7],
-        com_vel=vel[7],
-        feet=pts[:4],
-        dcom=(pts[7, 0] - pts[[1, 3], 0]) / model.foot_length,
+    gait, _, td, ds = update_gait(model.gait, s.gait, grf[:, 1], mg, s.t, s.qpos[2], dt)
+    sensors = sensors_of(
+        model, s.t, f_mtu, s.muscle.l_ce, phi, dphi, s.qpos, s.qvel, gait, td, ds, pts, vel[7]
     )
     command = scheduled_command(model, commands, s.t, dtype)
     law_state = s.command_state

@@ -85,6 +85,35 @@ def _scorer(objective):
 
 
 @functools.lru_cache(maxsize=16)
+def _lane_scorer(model_name: str, cfg, objective, lanes: int):
+    """jit: groups of queued rollouts -> per rollout (stage, value, valid) and lane counts.
+
+    ``run(params (G, Q, D), env (G, Q), max_stage (G, Q), d_lim, v0)``: each of the G groups
+    (one per device) runs its queue of Q rollouts over ``lanes`` lanes
+    (:func:`jaxgait.sim.lanes.lane_rollouts`) and scores each rollout when it ends.
+    """
+    from jaxgait.analysis.measures import compute_measures
+    from jaxgait.sim.lanes import lane_rollouts
+
+    model = get_model(model_name)
+    measure = jax.vmap(functools.partial(compute_measures, skip=2))
+
+    def finish(trace, events, summary, max_stage):
+        m = measure(trace, events, summary)
+        valid = objective_mod.rollout_valid(trace, summary)
+        stage, value = objective.fitness(m, valid, max_stage)
+        return stage, value, valid
+
+    def run(params, env, max_stage, d_lim, v0):
+        c = dataclasses.replace(cfg, d_lim=d_lim, v0=v0)
+        one = lambda p, e, ms: lane_rollouts(model, c, p, e, finish, lanes, aux=ms)
+        (stage, value, valid), stats = jax.vmap(one)(params, env, max_stage)
+        return stage, value, valid, stats
+
+    return jax.jit(run)
+
+
+@functools.lru_cache(maxsize=16)
 def _ask_tell(strategy):
     return jax.jit(strategy.ask), jax.jit(strategy.tell)
 
@@ -112,6 +141,15 @@ class PopulationEvaluator:
         #: rollouts per device call: every call has this shape, so one compilation serves
         #: the iterations and the final evaluation.
         self.rows = padded_size(exp.particles * exp.worst_of_k, self.n_devices, exp.batch_size)[0]
+        n = exp.particles * exp.worst_of_k
+        #: lanes per device of the scheduled evaluation: ``batch_size`` rollouts side by side
+        #: (default up to 64 per device), the rest queued.
+        lanes = exp.batch_size if exp.batch_size is not None else min(n, 64 * self.n_devices)
+        self.lanes = padded_size(n, self.n_devices, lanes)[0] // self.n_devices
+        self.lane_score = _lane_scorer(exp.model, self.sim_cfg, self.objective, self.lanes)
+        #: lane counts (:class:`~jaxgait.sim.lanes.LaneStats`, summed over devices) of the
+        #: last scheduled evaluation.
+        self.last_stats = None
         self.d_lim = jnp.asarray(exp.d_lim if math.isfinite(exp.d_lim) else jnp.inf, jnp.float32)
         self.v0 = jnp.asarray(exp.v0, jnp.float32)
 
@@ -140,11 +178,15 @@ class PopulationEvaluator:
         """Per-rollout ``(stage (B,), value (B,), valid (B,))`` (NumPy) of (B, D) params.
 
         ``max_stage``: optional (B,) cap of the stage (thesis 2.2.1.2); none by default.
-        ``keep_first``: also return the (trace, events, summary) of row 0 (NumPy).
+        Without ``keep_first`` the rollouts are queued over :attr:`lanes` lanes per device
+        (:meth:`lane_scores`); ``keep_first`` evaluates them in direct calls of :attr:`rows`
+        and also returns the (trace, events, summary) of row 0 (NumPy).
         """
-        first = None
         n = params.shape[0]
         cap = np.full(n, self.objective.n_stages, np.int32) if max_stage is None else max_stage
+        if not keep_first:
+            return self.lane_scores(params, env_keys, cap)
+        first = None
         stage = np.zeros(n, np.int32)
         value = np.zeros(n, np.float64)
         valid = np.zeros(n, bool)
@@ -154,11 +196,29 @@ class PopulationEvaluator:
             ms = np.concatenate([np.asarray(cap)[real], np.zeros(rows - m, np.int32)])
             s, v, ok = self.score(trace, events, summary, jnp.asarray(ms))
             stage[real], value[real], valid[real] = (np.asarray(a)[:m] for a in (s, v, ok))
-            if keep_first and first is None:
+            if first is None:
                 first = jax.tree.map(lambda x: np.asarray(x[0]), (trace, events, summary))
-        if keep_first:
-            return stage, value, valid, first
-        return stage, value, valid
+        return stage, value, valid, first
+
+    def lane_scores(self, params: jax.Array, env_keys: jax.Array, max_stage):
+        """Scheduled evaluation: the B rollouts split into one queue per device, each run
+        over :attr:`lanes` lanes; ``(stage, value, valid)`` (NumPy, B each).  The lane counts
+        are kept in :attr:`last_stats`."""
+        from jaxgait.world import envs
+
+        n, d = params.shape[0], self.n_devices
+        per = -(-n // d)
+        idx = np.arange(d * per)
+        idx = np.where(idx < n, idx, 0)  # the last queue is padded with copies of row 0
+        env_all = envs.make_env_batch(self.env_cfg, env_keys)
+        group = lambda x: x[idx].reshape((d, per) + x.shape[1:])
+        p = shard_population(group(jnp.asarray(params)), self.mesh)
+        e = shard_population(jax.tree.map(group, env_all), self.mesh)
+        ms = shard_population(group(jnp.asarray(max_stage, jnp.int32)), self.mesh)
+        stage, value, valid, stats = self.lane_score(p, e, ms, self.d_lim, self.v0)
+        self.last_stats = jax.tree.map(lambda x: np.asarray(x).sum(), stats)
+        flat = lambda x: np.asarray(x).reshape(d * per)[:n]
+        return flat(stage), flat(value).astype(np.float64), flat(valid)
 
     def evaluate(self, population: jax.Array, key: jax.Array, max_stage=None):
         """Worst-of-k ``(stage (P,), value (P,), n_failed_rollouts)`` of a (P, D) population.

@@ -132,7 +132,9 @@ class Experiment:
       stage_cap: stage PSO only: a particle at stage N reaches stage N+1 at most per iteration
         (thesis 2.2.1.2).
       v0: initial forward speed of the body [m/s].
-      batch_size: rollouts per device call (None: the whole population x k at once).
+      batch_size: lanes per device: rollouts run side by side, the rest of the population
+        x k queued (:mod:`jaxgait.sim.lanes`); None: up to 64 per device.  The final
+        re-evaluation runs in direct calls of this many rollouts.
     """
 
     name: str

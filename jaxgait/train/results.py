@@ -65,9 +65,10 @@ def progress_line(exp: Experiment, objective, state: TrainState, eta_s: float, f
     rate = int(state.hist_rollouts[it]) / max(secs, 1e-9)
     best = objective_mod.score_text(objective, state.best_stage, state.best_value)
     note = " (incl. compile)" if first else ""
+    util = 100 * float(state.hist_utilisation[it])
     return (
         f"{exp.name} it {it + 1}/{exp.iterations} | {pop} | best {best} | "
-        f"{rate:.1f} rollouts/s{note} | ETA {_fmt_time(eta_s)}"
+        f"{rate:.1f} rollouts/s{note} | lanes {util:.0f}% busy | ETA {_fmt_time(eta_s)}"
     )
 
 

@@ -41,6 +41,9 @@ class TrainState:
         rollouts (stage -1), column s + 1 stage s.
       hist_seconds: (N,) wall time of each iteration [s].
       hist_rollouts: (N,) int32 rollouts simulated per iteration (P k).
+      hist_utilisation: (N,) lane utilisation of each iteration's scheduled evaluation
+        (busy lane-steps / all lane-steps, :mod:`jaxgait.sim.lanes`).
+      hist_busy_steps: (N,) its busy lane-steps (physics steps simulated for rollouts).
     """
 
     opt_state: Any
@@ -57,6 +60,8 @@ class TrainState:
     hist_stage_counts: jax.Array
     hist_seconds: jax.Array
     hist_rollouts: jax.Array
+    hist_utilisation: jax.Array
+    hist_busy_steps: jax.Array
 
 
 @dataclass
@@ -119,6 +124,8 @@ def initial_state(exp: Experiment, strategy, table, n_stages: int) -> TrainState
         hist_stage_counts=jnp.zeros((n, n_stages + 1), jnp.int32),
         hist_seconds=jnp.zeros((n,), jnp.float32),
         hist_rollouts=jnp.zeros((n,), jnp.int32),
+        hist_utilisation=jnp.zeros((n,), jnp.float32),
+        hist_busy_steps=jnp.zeros((n,), jnp.float32),
     )
 
 
@@ -155,6 +162,9 @@ def run_iteration(exp: Experiment, strategy, evaluator: PopulationEvaluator, sta
     jax.block_until_ready(opt_state)
     secs = time.perf_counter() - t0
     n_roll = population.shape[0] * exp.worst_of_k
+    stats = evaluator.last_stats
+    util = float(stats.utilisation) if stats is not None else 0.0
+    busy = float(stats.busy) if stats is not None else 0.0
     new = state.replace(
         opt_state=opt_state,
         iteration=state.iteration + 1,
@@ -169,6 +179,8 @@ def run_iteration(exp: Experiment, strategy, evaluator: PopulationEvaluator, sta
         hist_stage_counts=state.hist_stage_counts.at[it].set(counts),
         hist_seconds=state.hist_seconds.at[it].set(secs),
         hist_rollouts=state.hist_rollouts.at[it].set(n_roll),
+        hist_utilisation=state.hist_utilisation.at[it].set(util),
+        hist_busy_steps=state.hist_busy_steps.at[it].set(busy),
     )
     return new, better
 
@@ -193,5 +205,7 @@ def history_rows(state: TrainState, objective) -> list[dict]:
         row["rollouts"] = int(h.hist_rollouts[it])
         row["seconds"] = round(secs, 3)
         row["rollouts_per_s"] = round(int(h.hist_rollouts[it]) / max(secs, 1e-9), 2)
+        row["lane_utilisation"] = round(float(h.hist_utilisation[it]), 4)
+        row["env_steps_per_s"] = round(float(h.hist_busy_steps[it]) / max(secs, 1e-9), 1)
         rows.append(row)
     return rows

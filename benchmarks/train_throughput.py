@@ -1,0 +1,101 @@
+"""Training throughput: what a generation realises of the step's own speed, and the wall time
+of the thesis experiments at full size.
+
+For an experiment (default ``exp3``, 60 particles) it runs a few iterations through
+:func:`jaxgait.train.train` and prints, per iteration after the first (which compiles):
+wall time, rollouts/s, lane utilisation (busy lane-steps / all lane-steps of the scheduled
+evaluation, :mod:`jaxgait.sim.lanes`) and the realised env-steps/s (busy lane-steps / wall
+time).  Next to them it times the bare step at the same lane count (``steps`` steps of a
+batch of walkers that never stop), and extrapolates the wall time of the full run
+(``--full-iterations``, 150 by default) from the mean iteration time::
+
+    ./jg python benchmarks/train_throughput.py exp3 --iterations 4
+    ./jg python benchmarks/train_throughput.py exp7a --iterations 3 --lanes 64
+
+The extrapolation is an estimate (later iterations of a stage search walk further, so they
+take longer than the first ones); a full run measures the real figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+
+def step_throughput(lanes: int, steps: int = 200, repeats: int = 3) -> float:
+    """env-steps/s of the bare FBL step at batch ``lanes`` (best of ``repeats``)."""
+    import jax
+    import jax.numpy as jnp
+
+    from jaxgait import models, sim
+    from jaxgait.world import envs
+
+    model = models.get_model("fbl")
+    cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
+    keys = jax.random.split(jax.random.PRNGKey(0), lanes)
+    env = envs.make_env_batch("flat", keys)
+    params = jnp.broadcast_to(jnp.asarray(model.table.init, jnp.float32), (lanes, model.table.size))
+    s0 = jax.vmap(lambda p, e: sim.initial_state(model, p, e, cfg))(params, env)
+
+    def run(s, p, e):
+        f = jax.vmap(lambda p, e, s: sim.step(model, cfg, p, e, s))
+        return jax.lax.scan(lambda s, _: (f(p, e, s), None), s, None, length=steps)[0]
+
+    f = jax.jit(run)
+    jax.block_until_ready(f(s0, params, env))
+    best = float("inf")
+    for _ in range(repeats):
+        t = time.perf_counter()
+        jax.block_until_ready(f(s0, params, env))
+        best = min(best, time.perf_counter() - t)
+    return lanes * steps / best
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("experiment", nargs="?", default="exp3")
+    ap.add_argument("--iterations", type=int, default=4, help="iterations run (first compiles)")
+    ap.add_argument("--particles", type=int, default=None, help="default: the experiment's")
+    ap.add_argument("--lanes", type=int, default=None, help="lanes per device (batch_size)")
+    ap.add_argument("--full-iterations", type=int, default=150)
+    a = ap.parse_args(argv)
+
+    from jaxgait.train import get_experiment, train
+    from jaxgait.train.evaluator import PopulationEvaluator
+
+    over = {"iterations": max(a.iterations, 2)}
+    if a.particles is not None:
+        over["particles"] = a.particles
+    if a.lanes is not None:
+        over["batch_size"] = a.lanes
+    exp = get_experiment(a.experiment, **over)
+    lanes = PopulationEvaluator(exp).lanes
+    with tempfile.TemporaryDirectory() as tmp:
+        res = train(exp, Path(tmp) / "run", progress=print, plots=False)
+    rows = res.history[1:]  # the first iteration compiles
+    print(
+        f"\n{exp.name}: {exp.particles} x {exp.worst_of_k} rollouts of <= {exp.duration:g} s, "
+        f"{lanes} lanes per device"
+    )
+    print("iteration   wall s   rollouts/s   utilisation   realised env-steps/s")
+    for r in rows:
+        print(
+            f"{r['iteration']:9d} {r['seconds']:8.1f} {r['rollouts_per_s']:12.2f} "
+            f"{100 * r['lane_utilisation']:12.1f}% {r['env_steps_per_s']:16,.0f}"
+        )
+    mean = sum(r["seconds"] for r in rows) / len(rows)
+    realised = sum(r["env_steps_per_s"] * r["seconds"] for r in rows) / (mean * len(rows))
+    step = step_throughput(lanes)
+    print(f"\nbare step at {lanes} lanes: {step:,.0f} env-steps/s")
+    print(f"realised / bare step: {realised / step:.2f}")
+    print(
+        f"mean iteration {mean:.1f} s -> {a.full_iterations} iterations ~ "
+        f"{mean * a.full_iterations / 60:.1f} min (extrapolated from {len(rows)} iterations)"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,170 @@
+"""A queue of rollouts over a fixed number of lanes: every lane busy until the queue is empty.
+
+A generation of an optimiser is Q (candidate, environment) rollouts of very different lengths
+(a faller ends after a second, a walker runs to its distance limit).  ``vmap(rollout)`` runs
+the batch until its slowest member ends, while the lanes of the others idle.
+:func:`lane_rollouts` instead runs L lanes in chunks (the chunks of :func:`rollout`); at each
+chunk end the lanes whose rollout is done hand its trace, events and summary to ``finish``
+(whose result lands in the rollout's slot) and take the next rollout from the queue, until
+the queue is empty.
+
+Each rollout starts at a chunk boundary of its lane and runs the same chunks as
+:func:`~jaxgait.sim.rollout.rollout` does alone, so its trace, events and summary are those of
+the rollout alone up to the rounding of a different batch (the physics is vectorised over a
+different set of lanes).
+
+Lane utilisation = busy lane-steps / all lane-steps, counted in whole chunks (a lane is busy
+during a chunk if it holds a rollout that was not done when the chunk began).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from jaxgait.sim.model import Model, SimConfig
+from jaxgait.sim.rollout import empty_trace, rollout_steps, run_chunk, summary_of
+from jaxgait.sim.step import initial_state
+from jaxgait.world.envs import Env
+
+
+@struct.dataclass
+class LaneStats:
+    """Counts of a scheduled evaluation.
+
+    Attributes:
+      busy: () lane-steps spent on rollouts (physics steps x lanes).
+      total: () all lane-steps of the program.
+      chunks: () chunks run.
+    """
+
+    busy: jax.Array
+    total: jax.Array
+    chunks: jax.Array
+
+    @property
+    def utilisation(self) -> jax.Array:
+        return self.busy / jnp.maximum(self.total, 1)
+
+
+def _take(tree, idx):
+    return jax.tree.map(lambda x: x[idx], tree)
+
+
+def _select(mask, a, b):
+    """Per lane: ``a`` where ``mask`` else ``b`` (leaves with a leading lane axis)."""
+
+    def pick(x, y):
+        m = mask.reshape(mask.shape + (1,) * (x.ndim - 1))
+        return jnp.where(m, x, y)
+
+    return jax.tree.map(pick, a, b)
+
+
+def lane_rollouts(
+    model: Model,
+    cfg: SimConfig,
+    params: jax.Array,
+    env: Env,
+    finish: Callable[..., Any],
+    n_lanes: int,
+    commands=None,
+    aux=None,
+):
+    """Run the Q rollouts of ``params`` (Q, D) on ``env`` (batch of Q) over ``n_lanes`` lanes.
+
+    Args:
+      model, cfg: as for :func:`~jaxgait.sim.rollout.rollout` (static).
+      params: (Q, D) parameter sets; env: Q environments (leading axis); commands: optional
+        batch of Q schedules.
+      finish: ``(trace, events, summary, aux) -> pytree`` on a batch of lanes (leading axis
+        L; traceable), e.g. the measures or the score of each lane's rollout; the results of
+        the lanes whose rollout just ended are kept.
+      n_lanes: L, the lanes run side by side (static; more than Q leaves some idle).
+      aux: optional pytree with a leading axis of Q, each rollout's row handed to ``finish``
+        (e.g. a per-candidate stage cap).
+
+    Returns:
+      ``(results, stats)``: ``finish``'s outputs stacked over the Q rollouts in queue order,
+      and :class:`LaneStats`.
+    """
+    q = params.shape[0]
+    lanes = int(n_lanes)
+    if lanes < 1:
+        raise ValueError(f"n_lanes must be at least 1, got {n_lanes}")
+    log_every, rpc, n_chunks = rollout_steps(cfg, model.dt)
+    n_rows = math.ceil(cfg.duration / cfg.log_dt)
+    steps_per_chunk = rpc * log_every
+
+    def start(item):
+        c = None if commands is None else _take(commands, item)
+        return jax.vmap(lambda p, e, c: initial_state(model, p, e, cfg, c), in_axes=(0, 0, 0))(
+            params[item], _take(env, item), c
+        )
+
+    def chunk_all(item, s):
+        c = None if commands is None else _take(commands, item)
+        f = lambda p, e, s, c: run_chunk(model, cfg, p, e, s, c)
+        return jax.vmap(f)(params[item], _take(env, item), s, c)
+
+    def finish_all(trace, s, item):
+        rows = jax.tree.map(lambda x: x[:, :n_rows], trace)
+        summary = jax.vmap(lambda st: summary_of(model, st))(s)
+        return finish(rows, s.events, summary, None if aux is None else _take(aux, item))
+
+    item0 = jnp.minimum(jnp.arange(lanes), q - 1)
+    active0 = jnp.arange(lanes) < q
+    s0 = start(item0)
+    trace0 = jax.vmap(lambda st: empty_trace(model, cfg, st))(s0)
+    out_shape = jax.eval_shape(finish_all, trace0, s0, item0)
+    results0 = jax.tree.map(lambda x: jnp.zeros((q,) + x.shape[1:], x.dtype), out_shape)
+    zero = jnp.zeros((), jnp.int32)
+    stats0 = LaneStats(busy=zero, total=zero, chunks=zero)
+
+    def body(carry):
+        item, active, k, s, trace, nxt, results, stats = carry
+        s, rows = chunk_all(item, s)
+        trace = jax.vmap(
+            lambda buf, r, k: jax.tree.map(
+                lambda b, x: jax.lax.dynamic_update_slice_in_dim(b, x, k * rpc, 0), buf, r
+            )
+        )(trace, rows, k)
+        stats = LaneStats(
+            busy=stats.busy + active.sum().astype(jnp.int32) * steps_per_chunk,
+            total=stats.total + lanes * steps_per_chunk,
+            chunks=stats.chunks + 1,
+        )
+        k = k + 1
+        ended = active & (s.done | (k >= n_chunks))
+        out = jax.lax.cond(
+            jnp.any(ended),
+            lambda: finish_all(trace, s, item),
+            lambda: jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), out_shape),
+        )
+        slot = jnp.where(ended, item, q)  # q: out of range, dropped
+        results = jax.tree.map(lambda r, o: r.at[slot].set(o, mode="drop"), results, out)
+        # the ended lanes take the next rollouts of the queue, in lane order
+        new_item = nxt + jnp.cumsum(ended) - 1
+        take = ended & (new_item < q)
+        item = jnp.where(take, new_item, item)
+        nxt = nxt + take.sum().astype(jnp.int32)
+        active = (active & ~ended) | take
+        fresh = start(item)
+        s = _select(take, fresh, s)
+        trace = _select(take, jax.tree.map(jnp.zeros_like, trace), trace)
+        k = jnp.where(take, 0, k)
+        return item, active, k, s, trace, nxt, results, stats
+
+    def cond(carry):
+        return jnp.any(carry[1])
+
+    k0 = jnp.zeros((lanes,), jnp.int32)
+    nxt0 = jnp.asarray(min(lanes, q), jnp.int32)
+    carry = (item0, active0, k0, s0, trace0, nxt0, results0, stats0)
+    carry = jax.lax.while_loop(cond, body, carry)
+    return carry[6], carry[7]

@@ -1,0 +1,82 @@
+"""The lane scheduler: a queue of rollouts over fewer (or more) lanes gives each rollout the
+result it has alone, and counts the lane utilisation."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxgait import presets, sim
+from jaxgait.sim.lanes import lane_rollouts
+from jaxgait.world import envs
+
+CFG = sim.SimConfig(duration=1.0, chunk_s=0.25)
+
+
+def _one(trace, events, summary):
+    return {
+        "distance": summary.distance,
+        "duration": summary.duration,
+        "fell": summary.fell,
+        "energy": summary.energy,
+        "steps": events.n,
+        "x_end": trace.com[-1, 0],
+        "alive_rows": trace.alive.sum(),
+    }
+
+
+def _finish(trace, events, summary, aux):
+    return {**jax.vmap(_one)(trace, events, summary), "tag": aux}
+
+
+@pytest.fixture(scope="module")
+def mixed(fbl_model):
+    """Walkers and fallers on different wavy grounds, rolled out directly (one batch)."""
+    _, vec, _ = presets.load_preset("fbl_walk")
+    table = fbl_model.table
+    rng = np.random.default_rng(0)
+    wild = table.lower + rng.uniform(size=(3, table.size)) * (table.upper - table.lower)
+    params = jnp.asarray(np.stack([vec, wild[0], vec * 1.01, wild[1], wild[2]]), jnp.float32)
+    env = envs.make_env_batch("wavy", jax.random.split(jax.random.PRNGKey(3), params.shape[0]))
+    direct = jax.jit(jax.vmap(lambda p, e: _one(*sim.rollout(fbl_model, CFG, p, e)[:3])))
+    return params, env, jax.device_get(direct(params, env))
+
+
+@pytest.mark.parametrize("lanes", [2, 8], ids=["queue_longer", "queue_shorter"])
+def test_scheduled_equals_direct_per_candidate(fbl_model, mixed, lanes):
+    params, env, ref = mixed
+    tags = 10 * jnp.arange(params.shape[0])
+    f = jax.jit(lambda p, e: lane_rollouts(fbl_model, CFG, p, e, _finish, lanes, aux=tags))
+    res, stats = jax.device_get(f(params, env))
+    np.testing.assert_array_equal(res["tag"], np.asarray(tags))  # each result in its slot
+    assert ref["fell"].any() and not ref["fell"].all()  # the batch mixes fallers and walkers
+    np.testing.assert_array_equal(res["fell"], ref["fell"])
+    np.testing.assert_array_equal(res["steps"], ref["steps"])
+    np.testing.assert_array_equal(res["alive_rows"], ref["alive_rows"])
+    np.testing.assert_allclose(res["duration"], ref["duration"], atol=1e-6)
+    for k in ("distance", "x_end"):
+        np.testing.assert_allclose(res[k], ref[k], rtol=0, atol=1e-4, err_msg=k)
+    np.testing.assert_allclose(res["energy"], ref["energy"], rtol=1e-4)
+    assert 0 < float(stats.busy) <= float(stats.total)
+
+
+def test_utilisation_of_a_hand_made_queue(fbl_model):
+    """Three walkers of two chunks each on two lanes: lane 0 runs rollouts 0 and 2 (four
+    chunks), lane 1 runs rollout 1 and idles two chunks: 6 busy lane-chunks of 8."""
+    _, vec, _ = presets.load_preset("fbl_walk")
+    cfg = sim.SimConfig(duration=0.5, chunk_s=0.25)
+    params = jnp.asarray(np.stack([vec, vec, vec]), jnp.float32)
+    env = envs.make_env_batch("flat", jax.random.split(jax.random.PRNGKey(0), 3))
+    fin = lambda t, e, s, a: s.duration
+    res, stats = jax.jit(lambda p, e: lane_rollouts(fbl_model, cfg, p, e, fin, 2))(params, env)
+    per_chunk = round(0.25 / fbl_model.dt)
+    assert int(stats.chunks) == 4
+    assert int(stats.busy) == 6 * per_chunk and int(stats.total) == 8 * per_chunk
+    assert float(stats.utilisation) == pytest.approx(0.75)
+    np.testing.assert_allclose(np.asarray(res), 0.5, atol=1e-6)
+
+
+def test_lanes_must_be_positive(fbl_model, mixed):
+    params, env, _ = mixed
+    with pytest.raises(ValueError, match="n_lanes"):
+        lane_rollouts(fbl_model, CFG, params, env, _finish, 0)
