@@ -10,7 +10,7 @@ batch of walkers that never stop), and extrapolates the wall time of the full ru
 (``--full-iterations``, 150 by default) from the mean iteration time::
 
     ./jg python benchmarks/train_throughput.py exp3 --iterations 4
-    ./jg python benchmarks/train_throughput.py exp7a --iterations 3 --lanes 64
+    ./jg python benchmarks/train_throughput.py exp3 --iterations 4 --lanes 16   # queued
 
 The extrapolation is an estimate (later iterations of a stage search walk further, so they
 take longer than the first ones); a full run measures the real figure.
@@ -58,7 +58,7 @@ def main(argv=None) -> int:
     ap.add_argument("experiment", nargs="?", default="exp3")
     ap.add_argument("--iterations", type=int, default=4, help="iterations run (first compiles)")
     ap.add_argument("--particles", type=int, default=None, help="default: the experiment's")
-    ap.add_argument("--lanes", type=int, default=None, help="lanes per device (batch_size)")
+    ap.add_argument("--lanes", type=int, default=None, help="queue over this many lanes per device")
     ap.add_argument("--full-iterations", type=int, default=150)
     a = ap.parse_args(argv)
 
@@ -69,15 +69,17 @@ def main(argv=None) -> int:
     if a.particles is not None:
         over["particles"] = a.particles
     if a.lanes is not None:
-        over["batch_size"] = a.lanes
+        over["lanes"] = a.lanes
     exp = get_experiment(a.experiment, **over)
-    lanes = PopulationEvaluator(exp).lanes
+    ev = PopulationEvaluator(exp)
+    lanes = ev.lanes if ev.lanes is not None else ev.rows // ev.n_devices
+    mode = "queued" if ev.lanes is not None else "direct calls"
     with tempfile.TemporaryDirectory() as tmp:
         res = train(exp, Path(tmp) / "run", progress=print, plots=False)
     rows = res.history[1:]  # the first iteration compiles
     print(
         f"\n{exp.name}: {exp.particles} x {exp.worst_of_k} rollouts of <= {exp.duration:g} s, "
-        f"{lanes} lanes per device"
+        f"{lanes} lanes per device ({mode})"
     )
     print("iteration   wall s   rollouts/s   utilisation   realised env-steps/s")
     for r in rows:

@@ -107,28 +107,47 @@ def lane_rollouts(
             params[item], _take(env, item), c
         )
 
-    def chunk_all(item, s):
+    def inputs(item):
+        """The parameters, environments and schedules of the lanes' rollouts."""
         c = None if commands is None else _take(commands, item)
-        f = lambda p, e, s, c: run_chunk(model, cfg, p, e, s, c)
-        return jax.vmap(f)(params[item], _take(env, item), s, c)
+        return params[item], _take(env, item), c
 
-    def finish_all(trace, s, item):
+    def chunk_all(lane_in, s):
+        f = lambda p, e, s, c: run_chunk(model, cfg, p, e, s, c)
+        return jax.vmap(f)(*lane_in[:2], s, lane_in[2])
+
+    def finish_all(trace, s, aux_rows):
         rows = jax.tree.map(lambda x: x[:, :n_rows], trace)
         summary = jax.vmap(lambda st: summary_of(model, st))(s)
-        return finish(rows, s.events, summary, None if aux is None else _take(aux, item))
+        return finish(rows, s.events, summary, aux_rows)
+
+    def finish_ended(trace, s, item, ended, results):
+        """``finish`` on each ended lane alone (a batch of one), its result in its slot."""
+        order = jnp.argsort(~ended, stable=True)  # the ended lanes first
+
+        def one(i, res):
+            lane = order[i]
+            tr = jax.tree.map(lambda x: x[lane][None], trace)
+            st = jax.tree.map(lambda x: x[lane][None], s)
+            a = None if aux is None else _take(aux, item[lane][None])
+            out = finish_all(tr, st, a)
+            return jax.tree.map(lambda r, o: r.at[item[lane]].set(o[0]), res, out)
+
+        return jax.lax.fori_loop(0, ended.sum(), one, results)
 
     item0 = jnp.minimum(jnp.arange(lanes), q - 1)
     active0 = jnp.arange(lanes) < q
     s0 = start(item0)
     trace0 = jax.vmap(lambda st: empty_trace(model, cfg, st))(s0)
-    out_shape = jax.eval_shape(finish_all, trace0, s0, item0)
+    aux0 = None if aux is None else _take(aux, item0)
+    out_shape = jax.eval_shape(finish_all, trace0, s0, aux0)
     results0 = jax.tree.map(lambda x: jnp.zeros((q,) + x.shape[1:], x.dtype), out_shape)
     zero = jnp.zeros((), jnp.int32)
     stats0 = LaneStats(busy=zero, total=zero, chunks=zero)
 
     def body(carry):
-        item, active, k, s, trace, nxt, results, stats = carry
-        s, rows = chunk_all(item, s)
+        item, lane_in, active, k, s, trace, nxt, results, stats = carry
+        s, rows = chunk_all(lane_in, s)
         trace = jax.vmap(
             lambda buf, r, k: jax.tree.map(
                 lambda b, x: jax.lax.dynamic_update_slice_in_dim(b, x, k * rpc, 0), buf, r
@@ -141,30 +160,30 @@ def lane_rollouts(
         )
         k = k + 1
         ended = active & (s.done | (k >= n_chunks))
-        out = jax.lax.cond(
-            jnp.any(ended),
-            lambda: finish_all(trace, s, item),
-            lambda: jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), out_shape),
-        )
-        slot = jnp.where(ended, item, q)  # q: out of range, dropped
-        results = jax.tree.map(lambda r, o: r.at[slot].set(o, mode="drop"), results, out)
+        results = finish_ended(trace, s, item, ended, results)
         # the ended lanes take the next rollouts of the queue, in lane order
         new_item = nxt + jnp.cumsum(ended) - 1
         take = ended & (new_item < q)
         item = jnp.where(take, new_item, item)
         nxt = nxt + take.sum().astype(jnp.int32)
         active = (active & ~ended) | take
-        fresh = start(item)
-        s = _select(take, fresh, s)
-        trace = _select(take, jax.tree.map(jnp.zeros_like, trace), trace)
+
+        def refill(s, trace, lane_in):
+            s = _select(take, start(item), s)
+            trace = _select(take, jax.tree.map(jnp.zeros_like, trace), trace)
+            return s, trace, inputs(item)
+
+        s, trace, lane_in = jax.lax.cond(
+            jnp.any(take), refill, lambda s, t, li: (s, t, li), s, trace, lane_in
+        )
         k = jnp.where(take, 0, k)
-        return item, active, k, s, trace, nxt, results, stats
+        return item, lane_in, active, k, s, trace, nxt, results, stats
 
     def cond(carry):
-        return jnp.any(carry[1])
+        return jnp.any(carry[2])
 
     k0 = jnp.zeros((lanes,), jnp.int32)
     nxt0 = jnp.asarray(min(lanes, q), jnp.int32)
-    carry = (item0, active0, k0, s0, trace0, nxt0, results0, stats0)
+    carry = (item0, inputs(item0), active0, k0, s0, trace0, nxt0, results0, stats0)
     carry = jax.lax.while_loop(cond, body, carry)
-    return carry[6], carry[7]
+    return carry[7], carry[8]

@@ -83,6 +83,12 @@ def _parser() -> argparse.ArgumentParser:
         help="environments per parameter set (worst kept)",
     )
     p.add_argument(
+        "--lanes",
+        type=int,
+        default=S,
+        help="queue the rollouts over this many lanes per device (default: direct calls)",
+    )
+    p.add_argument(
         "--set",
         dest="sets",
         action="append",
@@ -98,7 +104,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def _cli_experiment(a: argparse.Namespace) -> tuple[Experiment, Path]:
     overrides = parse_set(a.sets)
-    for k in ("particles", "iterations", "seed", "duration", "d_lim", "worst_of_k"):
+    for k in ("particles", "iterations", "seed", "duration", "d_lim", "worst_of_k", "lanes"):
         if k in vars(a):
             overrides[k] = getattr(a, k)
     base = resolve_experiment(a.experiment)

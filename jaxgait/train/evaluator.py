@@ -13,6 +13,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from jaxgait.sim.lanes import LaneStats
+from jaxgait.sim.rollout import rollout_steps as sim_rollout_steps
 from jaxgait.train import objective as objective_mod
 from jaxgait.train.experiments import (
     Experiment,
@@ -141,14 +143,13 @@ class PopulationEvaluator:
         #: rollouts per device call: every call has this shape, so one compilation serves
         #: the iterations and the final evaluation.
         self.rows = padded_size(exp.particles * exp.worst_of_k, self.n_devices, exp.batch_size)[0]
-        n = exp.particles * exp.worst_of_k
-        #: lanes per device of the scheduled evaluation: ``batch_size`` rollouts side by side
-        #: (default up to 64 per device), the rest queued.
-        lanes = exp.batch_size if exp.batch_size is not None else min(n, 64 * self.n_devices)
-        self.lanes = padded_size(n, self.n_devices, lanes)[0] // self.n_devices
-        self.lane_score = _lane_scorer(exp.model, self.sim_cfg, self.objective, self.lanes)
+        #: lanes per device of the scheduled evaluation (None: direct calls of :attr:`rows`)
+        self.lanes = exp.lanes
+        if self.lanes is not None:
+            self.lane_score = _lane_scorer(exp.model, self.sim_cfg, self.objective, self.lanes)
         #: lane counts (:class:`~jaxgait.sim.lanes.LaneStats`, summed over devices) of the
-        #: last scheduled evaluation.
+        #: last evaluation: of the queue, or of the direct calls (whose lanes idle from the end
+        #: of their rollout to the end of the call's longest one).
         self.last_stats = None
         self.d_lim = jnp.asarray(exp.d_lim if math.isfinite(exp.d_lim) else jnp.inf, jnp.float32)
         self.v0 = jnp.asarray(exp.v0, jnp.float32)
@@ -178,15 +179,19 @@ class PopulationEvaluator:
         """Per-rollout ``(stage (B,), value (B,), valid (B,))`` (NumPy) of (B, D) params.
 
         ``max_stage``: optional (B,) cap of the stage (thesis 2.2.1.2); none by default.
-        Without ``keep_first`` the rollouts are queued over :attr:`lanes` lanes per device
-        (:meth:`lane_scores`); ``keep_first`` evaluates them in direct calls of :attr:`rows`
-        and also returns the (trace, events, summary) of row 0 (NumPy).
+        With :attr:`lanes` set (and no ``keep_first``) the rollouts are queued over that many
+        lanes per device (:meth:`lane_scores`); otherwise they run in direct calls of
+        :attr:`rows`.  ``keep_first``: also return the (trace, events, summary) of row 0
+        (NumPy).
         """
         n = params.shape[0]
         cap = np.full(n, self.objective.n_stages, np.int32) if max_stage is None else max_stage
-        if not keep_first:
+        if self.lanes is not None and not keep_first:
             return self.lane_scores(params, env_keys, cap)
         first = None
+        _, rpc, _ = sim_rollout_steps(self.sim_cfg, self.model.dt)
+        chunk_steps = rpc * round(self.sim_cfg.log_dt / self.model.dt)
+        busy = total = chunks = 0
         stage = np.zeros(n, np.int32)
         value = np.zeros(n, np.float64)
         valid = np.zeros(n, bool)
@@ -196,9 +201,18 @@ class PopulationEvaluator:
             ms = np.concatenate([np.asarray(cap)[real], np.zeros(rows - m, np.int32)])
             s, v, ok = self.score(trace, events, summary, jnp.asarray(ms))
             stage[real], value[real], valid[real] = (np.asarray(a)[:m] for a in (s, v, ok))
-            if first is None:
+            if keep_first and first is None:
                 first = jax.tree.map(lambda x: np.asarray(x[0]), (trace, events, summary))
-        return stage, value, valid, first
+            # each lane runs whole chunks until its rollout ends; the call until its longest
+            ran = np.ceil(np.asarray(summary.duration) / self.sim_cfg.chunk_s - 1e-6)
+            ran = np.maximum(ran, 1).astype(np.int64)
+            busy += int(ran[:m].sum()) * chunk_steps
+            total += int(ran.max()) * rows * chunk_steps
+            chunks += int(ran.max())
+        self.last_stats = LaneStats(busy=busy, total=total, chunks=chunks)
+        if keep_first:
+            return stage, value, valid, first
+        return stage, value, valid
 
     def lane_scores(self, params: jax.Array, env_keys: jax.Array, max_stage):
         """Scheduled evaluation: the B rollouts split into one queue per device, each run

@@ -132,9 +132,10 @@ class Experiment:
       stage_cap: stage PSO only: a particle at stage N reaches stage N+1 at most per iteration
         (thesis 2.2.1.2).
       v0: initial forward speed of the body [m/s].
-      batch_size: lanes per device: rollouts run side by side, the rest of the population
-        x k queued (:mod:`jaxgait.sim.lanes`); None: up to 64 per device.  The final
-        re-evaluation runs in direct calls of this many rollouts.
+      batch_size: rollouts per device call (None: the whole population x k at once).
+      lanes: None (default): the rollouts of an iteration run in direct calls of
+        ``batch_size``; a number: they are queued and run over this many lanes per device,
+        a lane taking the next rollout as soon as its own ended (:mod:`jaxgait.sim.lanes`).
     """
 
     name: str
@@ -157,6 +158,7 @@ class Experiment:
     stage_cap: bool = True
     v0: float = 1.3
     batch_size: int | None = None
+    lanes: int | None = None
 
     def __post_init__(self):
         s = lambda k, v: object.__setattr__(self, k, v)
@@ -211,6 +213,8 @@ class Experiment:
         s("seed", _integer("seed", self.seed, 0))
         if self.batch_size is not None:
             s("batch_size", _integer("batch_size", self.batch_size, 1))
+        if self.lanes is not None:
+            s("lanes", _integer("lanes", self.lanes, 1))
         if not isinstance(self.stage_cap, bool):
             raise ExperimentError(f"invalid stage_cap={self.stage_cap!r}: must be true or false")
         if self.init is not None and (not isinstance(self.init, str) or not self.init):
