@@ -11,6 +11,7 @@ batch of walkers that never stop), and extrapolates the wall time of the full ru
 
     ./jg python benchmarks/train_throughput.py exp3 --iterations 4
     ./jg python benchmarks/train_throughput.py exp3 --iterations 4 --lanes 16   # queued
+    ./jg python benchmarks/train_throughput.py exp3 --compare-queue 60   # direct vs queued
 
 The extrapolation is an estimate (later iterations of a stage search walk further, so they
 take longer than the first ones); a full run measures the real figure.
@@ -53,6 +54,42 @@ def step_throughput(lanes: int, steps: int = 200, repeats: int = 3) -> float:
     return lanes * steps / best
 
 
+def compare_queue(name: str, particles: int | None, lanes: int) -> int:
+    """Direct calls against the queue on one generation: scores, wall time, lane counts."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from jaxgait import presets
+    from jaxgait.train import PopulationEvaluator, get_experiment
+
+    exp = get_experiment(name, **({} if particles is None else {"particles": particles}))
+    _, vec, _ = presets.load_preset("fbl_walk")
+    n = exp.particles * exp.worst_of_k
+    rng = np.random.default_rng(0)
+    table = PopulationEvaluator(exp).model.table
+    pop = vec * (1 + 0.05 * rng.uniform(-1, 1, (n, vec.size)))
+    pop = jnp.asarray(np.clip(pop, table.lower, table.upper), jnp.float32)
+    keys = jax.random.split(jax.random.PRNGKey(1), n)
+    out = {}
+    for label, e in (("direct", exp), (f"queued over {lanes} lanes", exp.replace(lanes=lanes))):
+        ev = PopulationEvaluator(e)
+        for _ in range(2):  # the first call compiles
+            t = time.perf_counter()
+            stage, value, _ = ev.scores(pop, keys)
+            secs = time.perf_counter() - t
+        st = ev.last_stats
+        out[label] = stage
+        print(
+            f"{label:24s} {secs:7.1f} s  utilisation {float(st.utilisation):.3f}  "
+            f"busy {int(st.busy):,}  total {int(st.total):,} lane-steps  "
+            f"{int(st.total) / secs:,.0f} lane-steps/s"
+        )
+    same = all(np.array_equal(v, out["direct"]) for v in out.values())
+    print("stages identical per candidate:", same)
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("experiment", nargs="?", default="exp3")
@@ -60,7 +97,16 @@ def main(argv=None) -> int:
     ap.add_argument("--particles", type=int, default=None, help="default: the experiment's")
     ap.add_argument("--lanes", type=int, default=None, help="queue over this many lanes per device")
     ap.add_argument("--full-iterations", type=int, default=150)
+    ap.add_argument(
+        "--compare-queue",
+        type=int,
+        metavar="LANES",
+        help="instead: time one generation of perturbed fbl_walk candidates in direct calls "
+        "and queued over LANES lanes (second call of each, after compilation)",
+    )
     a = ap.parse_args(argv)
+    if a.compare_queue:
+        return compare_queue(a.experiment, a.particles, a.compare_queue)
 
     from jaxgait.train import get_experiment, train
     from jaxgait.train.evaluator import PopulationEvaluator

@@ -1,6 +1,8 @@
 """The lane scheduler: a queue of rollouts over fewer (or more) lanes gives each rollout the
 result it has alone, and counts the lane utilisation."""
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -29,6 +31,11 @@ def _finish(trace, events, summary, aux):
     return {**jax.vmap(_one)(trace, events, summary), "tag": aux}
 
 
+@functools.partial(jax.jit, static_argnums=(0, 4))
+def _scheduled(model, params, env, tags, lanes):
+    return lane_rollouts(model, CFG, params, env, _finish, lanes, aux=tags)
+
+
 @pytest.fixture(scope="module")
 def mixed(fbl_model):
     """Walkers and fallers on different wavy grounds, rolled out directly (one batch)."""
@@ -46,8 +53,7 @@ def mixed(fbl_model):
 def test_scheduled_equals_direct_per_candidate(fbl_model, mixed, lanes):
     params, env, ref = mixed
     tags = 10 * jnp.arange(params.shape[0])
-    f = jax.jit(lambda p, e: lane_rollouts(fbl_model, CFG, p, e, _finish, lanes, aux=tags))
-    res, stats = jax.device_get(f(params, env))
+    res, stats = jax.device_get(_scheduled(fbl_model, params, env, tags, lanes))
     np.testing.assert_array_equal(res["tag"], np.asarray(tags))  # each result in its slot
     assert ref["fell"].any() and not ref["fell"].all()  # the batch mixes fallers and walkers
     np.testing.assert_array_equal(res["fell"], ref["fell"])
@@ -60,20 +66,19 @@ def test_scheduled_equals_direct_per_candidate(fbl_model, mixed, lanes):
     assert 0 < float(stats.busy) <= float(stats.total)
 
 
-def test_utilisation_of_a_hand_made_queue(fbl_model):
-    """Three walkers of two chunks each on two lanes: lane 0 runs rollouts 0 and 2 (four
-    chunks), lane 1 runs rollout 1 and idles two chunks: 6 busy lane-chunks of 8."""
+def test_utilisation_of_a_hand_made_queue(fbl_model, mixed):
+    """Five walkers of four chunks each (1 s) on two lanes: lane 0 runs rollouts 0, 2 and 4
+    (12 chunks), lane 1 runs rollouts 1 and 3 and idles 4 chunks: 20 busy lane-chunks of 24."""
     _, vec, _ = presets.load_preset("fbl_walk")
-    cfg = sim.SimConfig(duration=0.5, chunk_s=0.25)
-    params = jnp.asarray(np.stack([vec, vec, vec]), jnp.float32)
-    env = envs.make_env_batch("flat", jax.random.split(jax.random.PRNGKey(0), 3))
-    fin = lambda t, e, s, a: s.duration
-    res, stats = jax.jit(lambda p, e: lane_rollouts(fbl_model, cfg, p, e, fin, 2))(params, env)
+    params = jnp.asarray(np.stack([vec] * 5), jnp.float32)
+    env = envs.make_env_batch("flat", jax.random.split(jax.random.PRNGKey(0), 5))
+    res, stats = _scheduled(fbl_model, params, env, jnp.arange(5), 2)
+    assert not np.asarray(res["fell"]).any()
     per_chunk = round(0.25 / fbl_model.dt)
-    assert int(stats.chunks) == 4
-    assert int(stats.busy) == 6 * per_chunk and int(stats.total) == 8 * per_chunk
-    assert float(stats.utilisation) == pytest.approx(0.75)
-    np.testing.assert_allclose(np.asarray(res), 0.5, atol=1e-6)
+    assert int(stats.chunks) == 12
+    assert int(stats.busy) == 20 * per_chunk and int(stats.total) == 24 * per_chunk
+    assert float(stats.utilisation) == pytest.approx(20 / 24)
+    np.testing.assert_allclose(np.asarray(res["duration"]), 1.0, atol=1e-6)
 
 
 def test_lanes_must_be_positive(fbl_model, mixed):

@@ -82,9 +82,9 @@ def lane_rollouts(
       model, cfg: as for :func:`~jaxgait.sim.rollout.rollout` (static).
       params: (Q, D) parameter sets; env: Q environments (leading axis); commands: optional
         batch of Q schedules.
-      finish: ``(trace, events, summary, aux) -> pytree`` on a batch of lanes (leading axis
-        L; traceable), e.g. the measures or the score of each lane's rollout; the results of
-        the lanes whose rollout just ended are kept.
+      finish: ``(trace, events, summary, aux) -> pytree`` on a batch of rollouts (leading
+        axis; traceable), e.g. their measures or scores; called with one rollout at a time,
+        as each ends.
       n_lanes: L, the lanes run side by side (static; more than Q leaves some idle).
       aux: optional pytree with a leading axis of Q, each rollout's row handed to ``finish``
         (e.g. a per-candidate stage cap).
@@ -101,16 +101,13 @@ def lane_rollouts(
     n_rows = math.ceil(cfg.duration / cfg.log_dt)
     steps_per_chunk = rpc * log_every
 
-    def start(item):
-        c = None if commands is None else _take(commands, item)
-        return jax.vmap(lambda p, e, c: initial_state(model, p, e, cfg, c), in_axes=(0, 0, 0))(
-            params[item], _take(env, item), c
-        )
-
     def inputs(item):
         """The parameters, environments and schedules of the lanes' rollouts."""
         c = None if commands is None else _take(commands, item)
         return params[item], _take(env, item), c
+
+    def start(item):
+        return jax.vmap(lambda p, e, c: initial_state(model, p, e, cfg, c))(*inputs(item))
 
     def chunk_all(lane_in, s):
         f = lambda p, e, s, c: run_chunk(model, cfg, p, e, s, c)
