@@ -26,32 +26,16 @@ from pathlib import Path
 
 
 def step_throughput(lanes: int, steps: int = 200, repeats: int = 3) -> float:
-    """env-steps/s of the bare FBL step at batch ``lanes`` (best of ``repeats``)."""
+    """env-steps/s of the bare FBL step at batch ``lanes`` (best of ``repeats``), measured
+    with the setup and program of ``benchmarks/throughput.py``."""
     import jax
-    import jax.numpy as jnp
+    from throughput import _best_seconds, _full_program, _setup
 
-    from jaxgait import models, sim
-    from jaxgait.world import envs
-
-    model = models.get_model("fbl")
-    cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
-    keys = jax.random.split(jax.random.PRNGKey(0), lanes)
-    env = envs.make_env_batch("flat", keys)
-    params = jnp.broadcast_to(jnp.asarray(model.table.init, jnp.float32), (lanes, model.table.size))
-    s0 = jax.vmap(lambda p, e: sim.initial_state(model, p, e, cfg))(params, env)
-
-    def run(s, p, e):
-        f = jax.vmap(lambda p, e, s: sim.step(model, cfg, p, e, s))
-        return jax.lax.scan(lambda s, _: (f(p, e, s), None), s, None, length=steps)[0]
-
-    f = jax.jit(run)
-    jax.block_until_ready(f(s0, params, env))
-    best = float("inf")
-    for _ in range(repeats):
-        t = time.perf_counter()
-        jax.block_until_ready(f(s0, params, env))
-        best = min(best, time.perf_counter() - t)
-    return lanes * steps / best
+    model, cfg, params, env, s0 = _setup(lanes)
+    f = jax.jit(_full_program(model, cfg, steps))
+    arg = (s0, params, env)
+    jax.block_until_ready(f(arg))
+    return lanes * steps / _best_seconds(f, arg, repeats)
 
 
 def compare_queue(name: str, particles: int | None, lanes: int) -> int:
