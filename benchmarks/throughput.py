@@ -100,7 +100,6 @@ def run_case(kind: str, batch: int, steps: int, repeats: int) -> dict:
     import jax
     import numpy as np
 
-
     extra = {}
     if kind == "c":
         import mujoco

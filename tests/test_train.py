@@ -377,3 +377,54 @@ def test_padding_to_devices():
     assert tr.padded_size(10, 4, None) == (12, 1)
     assert tr.padded_size(10, 4, 4) == (4, 3)
     assert tr.padded_size(20, 1, 4) == (4, 5)
+
+
+# ----------------------------------------------------------------------- seeds
+
+
+def test_seeds_share_one_program_and_equal_separate_runs(tmp_path):
+    """``train_seeds`` runs each seed as ``train`` does alone (here bitwise: a call holds one
+    run's rollouts), in its own folder, and a killed multi-seed run resumes to the same end."""
+    exp = tiny("quickstart", seed=3)
+    lines = []
+    many = tr.train_seeds(exp, 2, tmp_path / "many", progress=quiet(lines), plots=False)
+    assert [r.config.seed for r in many] == [3, 4]
+    assert any(s.startswith("quickstart: 2 runs x 4 x 1 rollouts") for s in lines)
+    assert sum(" seed 4 it " in s for s in lines) == 2
+    for r in many:
+        seed = r.config.seed
+        assert r.out_dir == tmp_path / "many" / f"seed{seed}" and r.complete
+        assert load_config(r.out_dir / "config.json") == exp.replace(seed=seed)
+        assert (r.out_dir / "measures.json").is_file()
+        alone = tr.train(
+            exp.replace(seed=seed), tmp_path / f"alone{seed}", progress=None, plots=False
+        )
+        np.testing.assert_array_equal(r.best_params, alone.best_params)
+        assert (r.best_stage, r.best_value) == (alone.best_stage, alone.best_value)
+        assert r.measures["distance_m"] == alone.measures["distance_m"]
+    assert not np.array_equal(many[0].best_params, many[1].best_params)
+
+    part = tr.train_seeds(
+        exp, [3, 4], tmp_path / "part", progress=None, plots=False, max_iterations=1
+    )
+    assert [r.iterations_done for r in part] == [1, 1]
+    rest = tr.train_seeds(exp, 2, tmp_path / "part", resume=True, progress=None, plots=False)
+    for a, b in zip(rest, many, strict=True):
+        np.testing.assert_array_equal(a.best_params, b.best_params)
+        assert a.complete and a.iterations_done == 2
+
+
+@pytest.mark.parametrize("bad", [0, [], [1, 1], True, "2"])
+def test_bad_seeds_are_refused(bad, tmp_path):
+    with pytest.raises(tr.TrainError, match="seeds"):
+        tr.train_seeds(tiny("quickstart"), bad, tmp_path, progress=None)
+    assert not any(tmp_path.iterdir())
+
+
+def test_cli_seeds_writes_one_folder_per_seed(tmp_path, capsys):
+    argv = ["quickstart", "--particles", "4", "--iterations", "1", "--duration", "1"]
+    argv += ["--set", "batch_size=4", "--seeds", "2", "--out", str(tmp_path), "--no-plots"]
+    assert tr.main(argv) == 0
+    out = capsys.readouterr().out
+    for s in (0, 1):
+        assert f"seed {s}: best" in out and (tmp_path / f"seed{s}" / "best.json").is_file()

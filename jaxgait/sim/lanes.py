@@ -144,7 +144,10 @@ def lane_rollouts(
 
     def body(carry):
         item, lane_in, active, k, s, trace, nxt, results, stats = carry
-        s, rows = chunk_all(lane_in, s)
+        # an idle lane keeps its state (as vmap(rollout) keeps its done rollouts'), so a
+        # fallen body is not integrated on for the rest of the queue
+        s_new, rows = chunk_all(lane_in, s)
+        s = _select(active, s_new, s)
         trace = jax.vmap(
             lambda buf, r, k: jax.tree.map(
                 lambda b, x: jax.lax.dynamic_update_slice_in_dim(b, x, k * rpc, 0), buf, r

@@ -10,7 +10,8 @@ Command line (a thin layer over :func:`train`)::
 
     python -m jaxgait.train                      # list the experiments
     python -m jaxgait.train exp7a [--particles N] [--iterations N] [--seed S] [--out DIR]
-        [--resume] [--duration S] [--d-lim M] [--worst-of K] [--set key=value ...] [--no-plots]
+        [--resume] [--duration S] [--d-lim M] [--worst-of K] [--lanes L] [--seeds N]
+        [--set key=value ...] [--no-plots]
 
 Only flags actually given override the experiment (:mod:`jaxgait.train.experiments`). ``--set``
 takes any experiment field, values as JSON (``--set init=null``, ``--set targets.v_desired=1.5``,
@@ -53,10 +54,17 @@ from jaxgait.train.evaluator import (
     shard_population,
 )
 from jaxgait.train.experiments import EXPERIMENTS, Experiment, get_experiment, list_experiments
-from jaxgait.train.loop import train
+from jaxgait.train.loop import seed_dirs, train, train_seeds
 from jaxgait.train.results import final_evaluation, perturbation_check, perturbed_copies
 from jaxgait.train.setup import TrainError, config_document, get_model, resolve_init
-from jaxgait.train.state import TrainResult, TrainState, history_rows, run_iteration
+from jaxgait.train.state import (
+    TrainResult,
+    TrainState,
+    ask_population,
+    history_rows,
+    run_iteration,
+    tell_population,
+)
 
 __all__ = [
     "EXPERIMENTS",
@@ -65,6 +73,7 @@ __all__ = [
     "TrainError",
     "TrainResult",
     "TrainState",
+    "ask_population",
     "config_document",
     "final_evaluation",
     "get_experiment",
@@ -80,5 +89,8 @@ __all__ = [
     "resolve_init",
     "run_iteration",
     "shard_population",
+    "tell_population",
+    "seed_dirs",
     "train",
+    "train_seeds",
 ]

@@ -20,7 +20,7 @@ from jaxgait.train.experiments import (
     load_config,
     resolve_experiment,
 )
-from jaxgait.train.loop import train
+from jaxgait.train.loop import train, train_seeds
 from jaxgait.train.setup import DEFAULT_RUNS, TrainError
 
 # ------------------------------------------------------------------------------- CLI
@@ -89,6 +89,14 @@ def _parser() -> argparse.ArgumentParser:
         help="queue the rollouts over this many lanes per device (default: direct calls)",
     )
     p.add_argument(
+        "--seeds",
+        type=int,
+        default=None,
+        metavar="N",
+        help="N independent runs (seeds SEED ... SEED+N-1) sharing one program, each in "
+        "OUT/seed<S>",
+    )
+    p.add_argument(
         "--set",
         dest="sets",
         action="append",
@@ -110,6 +118,14 @@ def _cli_experiment(a: argparse.Namespace) -> tuple[Experiment, Path]:
     base = resolve_experiment(a.experiment)
     out = a.out if a.out is not None else DEFAULT_RUNS / base.name
     saved_path = out / "config.json"
+    if a.seeds is not None:  # the lowest seed's folder holds the runs' config
+        found = [
+            (int(p.parent.name[4:]), p)
+            for p in out.glob("seed*/config.json")
+            if p.parent.name[4:].isdigit()
+        ]
+        if found:
+            saved_path = min(found)[1]
     if a.resume and saved_path.is_file():
         saved = load_config(saved_path)
         if saved.name != base.name:
@@ -139,9 +155,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         pass
     try:
         exp, out = _cli_experiment(a)
-        result = train(
-            exp, out, resume=a.resume, progress=lambda s: print(s, flush=True), plots=not a.no_plots
-        )
+        say = lambda s: print(s, flush=True)  # noqa: E731
+        if a.seeds is not None:
+            results = train_seeds(
+                exp, a.seeds, out, resume=a.resume, progress=say, plots=not a.no_plots
+            )
+            for r in results:
+                print(f"seed {r.config.seed}: best {r.best_score}; results in {r.out_dir}")
+            return 0
+        result = train(exp, out, resume=a.resume, progress=say, plots=not a.no_plots)
     except KeyboardInterrupt:
         print("interrupted; continue with --resume (the last checkpoint is kept)", file=sys.stderr)
         return 130

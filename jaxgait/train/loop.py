@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -27,7 +28,181 @@ from jaxgait.train.results import (
     write_history,
 )
 from jaxgait.train.setup import DEFAULT_RUNS, TrainError, config_document, get_model
-from jaxgait.train.state import TrainResult, history_rows, initial_state, run_iteration
+from jaxgait.train.state import (
+    TrainResult,
+    ask_population,
+    history_rows,
+    initial_state,
+    tell_population,
+)
+
+
+class _Run:
+    """One run's files, checkpoints and state around the shared iterations."""
+
+    def __init__(self, exp: Experiment, out: Path, evaluator: PopulationEvaluator, say, label=""):
+        self.exp, self.out, self.say, self.label = exp, out, say, label
+        self.table = get_model(exp.model).table
+        self.doc = config_document(exp)
+        self.strategy = exp.strategy()
+        self.objective = evaluator.objective
+        # checks the init preset before anything is written
+        self.state = initial_state(exp, self.strategy, self.table, self.objective.n_stages)
+        self.ckpt: RunCheckpoints | None = None
+        self.files: dict[str, Path] = {}
+        self.start = 0
+
+    def open(self, resume: bool, max_iterations: int | None) -> None:
+        """Prepare the folder, restore the newest checkpoint (``resume``), write config.json."""
+        exp, say = self.exp, self.say
+        _prepare_out(self.out, resume)
+        self.ckpt = RunCheckpoints(self.out / "checkpoints", self.doc, warn=say)
+        if resume:
+            from orbax.checkpoint.utils import to_shape_dtype_struct
+
+            restored = self.ckpt.restore(jax.tree.map(to_shape_dtype_struct, self.state))
+            if restored is None:
+                say(
+                    f"{exp.name}: no checkpoint in {self.ckpt.directory}; starting from iteration 0"
+                )
+            else:
+                self.state = restored[1]
+                say(
+                    f"{exp.name}{self.label}: resumed from iteration {int(self.state.iteration)} "
+                    f"in {self.ckpt.directory}"
+                )
+        _atomic_write(self.out / "config.json", json.dumps(self.doc, indent=2) + "\n")
+        self.files["config"] = self.out / "config.json"
+        self.start = int(self.state.iteration)
+        self.stop = (
+            exp.iterations
+            if max_iterations is None
+            else min(exp.iterations, self.start + max_iterations)
+        )
+
+    @property
+    def pending(self) -> bool:
+        return int(self.state.iteration) < self.stop
+
+    def record(self, state, improved: bool) -> None:
+        """Checkpoint the state of a finished iteration, write history and best, say progress."""
+        exp, out = self.exp, self.out
+        it = int(state.iteration) - 1
+        self.state = state
+        self.ckpt.save(it + 1, state)
+        rows = history_rows(state, self.objective)
+        write_history(out / "history.csv", rows)
+        if improved or not (out / "best.json").exists():
+            self.files.update(save_best(out, exp, self.table, state, self.objective))
+        done_secs = [r["seconds"] for r in rows[self.start :]]
+        steady = done_secs[1:] or done_secs
+        eta = (exp.iterations - (it + 1)) * float(np.mean(steady))
+        line = progress_line(exp, self.objective, state, eta, first=(it == self.start))
+        self.say(line.replace(exp.name, exp.name + self.label, 1))
+
+    def close(self) -> None:
+        if self.ckpt is not None:
+            self.ckpt.close()
+
+    def finish(self, evaluator: PopulationEvaluator, plots: bool) -> TrainResult:
+        """Final files: history, best, and (when complete) the re-evaluation and plots."""
+        exp, out, state, objective, files = (
+            self.exp,
+            self.out,
+            self.state,
+            self.objective,
+            self.files,
+        )
+        say = self.say
+        rows = history_rows(state, objective)
+        files["history"] = out / "history.csv"
+        if not (out / "best.json").exists():
+            files.update(save_best(out, exp, self.table, state, objective))
+        files.setdefault("best", out / "best.json")
+        files.setdefault("best_params", out / "best_params.txt")
+        complete = int(state.iteration) >= exp.iterations
+        measures = None
+        if complete:
+            measures, f = final_evaluation(exp, evaluator, state, out, plots)
+            files.update(f)
+            if plots and objective.kind == "stage" and rows:
+                (out / "plots").mkdir(exist_ok=True)
+                files["plot_stage_progress"] = plot_stage_progress(
+                    out / "plots" / "stage_progress.png", rows, objective.criteria
+                )
+            best = objective_mod.score_text(objective, state.best_stage, state.best_value)
+            d, epm = measures.get("distance_m"), measures.get("energy_J_per_m")
+            d = f"{d:.2f} m" if d is not None else "n/a"
+            epm = f"{epm:.0f} J/m" if epm is not None else "n/a"
+            say(
+                f"{exp.name}{self.label}: done; best {best}; re-evaluated (no stage cap): "
+                f"{measures['score']}, distance {d}, {epm}; results in {out}"
+            )
+            surv = measures.get("perturbed_survival")
+            if surv is not None and surv < 1.0 and not measures.get("perturbed_reference_fell"):
+                say(
+                    f"warning: only {surv:.0%} of {measures['perturbed_copies']} copies of the "
+                    f"best perturbed by {measures['perturbed_relative']:g} (relative) stay up; "
+                    "this gait depends on rounding (train with --worst-of or a perturbed "
+                    "environment)"
+                )
+        lo, hi = self.table.lower, self.table.upper
+        return TrainResult(
+            config=exp,
+            out_dir=out,
+            best_params=np.clip(np.asarray(state.best_params, np.float64), lo, hi),
+            best_stage=int(state.best_stage),
+            best_value=float(state.best_value),
+            best_score=objective_mod.score_text(objective, state.best_stage, state.best_value),
+            iterations_done=int(state.iteration),
+            complete=complete,
+            history=rows,
+            measures=measures,
+            files=files,
+            state=state,
+        )
+
+
+def _shared_iteration(runs: Sequence[_Run], evaluator: PopulationEvaluator) -> None:
+    """One iteration of every pending run, their rollouts evaluated together."""
+    t0 = time.perf_counter()
+    todo = [r for r in runs if r.pending]
+    asked = [ask_population(r.exp, r.strategy, r.objective, r.state) for r in todo]
+    scored = evaluator.evaluate_many([(a.population, a.env_key, a.max_stage) for a in asked])
+    jax.block_until_ready([s for s, _, _ in scored])
+    secs = time.perf_counter() - t0
+    for r, a, (stage, value, _) in zip(todo, asked, scored, strict=True):
+        state, improved = tell_population(
+            r.exp, r.strategy, r.objective, r.state, a, stage, value, secs, evaluator.last_stats
+        )
+        r.record(state, improved)
+
+
+def _run_all(
+    runs: Sequence[_Run],
+    evaluator: PopulationEvaluator,
+    resume: bool,
+    max_iterations: int | None,
+    say,
+    plots: bool,
+) -> list[TrainResult]:
+    exp = runs[0].exp
+    try:
+        for r in runs:
+            r.open(resume, max_iterations)
+        if any(r.pending for r in runs):
+            what = f"{len(runs)} runs x " if len(runs) > 1 else ""
+            say(
+                f"{exp.name}: {what}{exp.particles} x {exp.worst_of_k} rollouts of "
+                f"{exp.duration:g} s per iteration on {evaluator.n_devices} device(s); the first "
+                "iteration compiles"
+            )
+        while any(r.pending for r in runs):
+            _shared_iteration(runs, evaluator)
+    finally:
+        for r in runs:
+            r.close()
+    return [r.finish(evaluator, plots) for r in runs]
 
 
 def train(
@@ -61,101 +236,65 @@ def train(
     """
     say = progress or (lambda s: None)
     exp = resolve_experiment(config)
+    _check_max_iterations(max_iterations)
+    out = Path(out_dir) if out_dir is not None else DEFAULT_RUNS / exp.name
+    evaluator = PopulationEvaluator(exp, devices)
+    run = _Run(exp, out, evaluator, say)
+    return _run_all([run], evaluator, resume, max_iterations, say, plots)[0]
+
+
+def seed_dirs(out: Path, seeds: Sequence[int]) -> list[Path]:
+    """The results folder of each seed of :func:`train_seeds`: ``out/seed<S>``."""
+    return [Path(out) / f"seed{s}" for s in seeds]
+
+
+def train_seeds(
+    config: Experiment | str | Path,
+    seeds: int | Sequence[int],
+    out_dir: str | Path | None = None,
+    resume: bool = False,
+    progress: Callable[[str], Any] | None = print,
+    max_iterations: int | None = None,
+    *,
+    devices: Sequence | None = None,
+    plots: bool = True,
+) -> list[TrainResult]:
+    """Independent runs of one experiment with different seeds, sharing one program.
+
+    Each iteration asks every run's optimiser, evaluates all their rollouts together (one
+    call or one queue, so the lanes are wider and busier) and tells each run its own scores.
+    A run's result is the one :func:`train` gives with that seed alone, up to the rounding
+    of a different batch; each has its own results folder (``out_dir/seed<S>``, default
+    ``runs/<name>/seed<S>``), checkpoints and resume.  In ``history.csv`` the seconds are
+    those of the shared iteration, and the lane figures those of the shared evaluation.
+
+    Args:
+      seeds: a number N (seeds ``exp.seed`` ... ``exp.seed + N - 1``) or a list of seeds.
+      the rest: as :func:`train`.
+
+    Returns one :class:`TrainResult` per seed, in order.
+    """
+    say = progress or (lambda s: None)
+    exp = resolve_experiment(config)
+    _check_max_iterations(max_iterations)
+    if isinstance(seeds, (bool, str, bytes)) or not isinstance(seeds, (int, Sequence)):
+        raise TrainError(f"seeds must be a positive number or a list of seeds, got {seeds!r}")
+    if isinstance(seeds, int):
+        if seeds < 1:
+            raise TrainError(f"seeds must be at least 1, got {seeds}")
+        seeds = [exp.seed + i for i in range(seeds)]
+    seeds = [int(s) for s in seeds]
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise TrainError(f"seeds must be distinct and not empty, got {seeds}")
+    out = Path(out_dir) if out_dir is not None else DEFAULT_RUNS / exp.name
+    evaluator = PopulationEvaluator(exp, devices, n_runs=len(seeds))
+    runs = [
+        _Run(exp.replace(seed=s), d, evaluator, say, label=f" seed {s}")
+        for s, d in zip(seeds, seed_dirs(out, seeds), strict=True)
+    ]
+    return _run_all(runs, evaluator, resume, max_iterations, say, plots)
+
+
+def _check_max_iterations(max_iterations) -> None:
     if max_iterations is not None and (isinstance(max_iterations, bool) or max_iterations < 1):
         raise TrainError(f"max_iterations must be a positive integer, got {max_iterations!r}")
-    model = get_model(exp.model)
-    table = model.table
-    out = Path(out_dir) if out_dir is not None else DEFAULT_RUNS / exp.name
-    doc = config_document(exp)
-    strategy = exp.strategy()
-    evaluator = PopulationEvaluator(exp, devices)
-    objective = evaluator.objective
-    state = initial_state(exp, strategy, table, objective.n_stages)  # checks the init preset
-    _prepare_out(out, resume)
-
-    ckpt = RunCheckpoints(out / "checkpoints", doc, warn=say)
-    files: dict[str, Path] = {}
-    try:
-        if resume:
-            from orbax.checkpoint.utils import to_shape_dtype_struct
-
-            restored = ckpt.restore(jax.tree.map(to_shape_dtype_struct, state))
-            if restored is None:
-                say(f"{exp.name}: no checkpoint in {ckpt.directory}; starting from iteration 0")
-            else:
-                state = restored[1]
-                say(
-                    f"{exp.name}: resumed from iteration {int(state.iteration)} in {ckpt.directory}"
-                )
-        _atomic_write(out / "config.json", json.dumps(doc, indent=2) + "\n")
-        files["config"] = out / "config.json"
-        start = int(state.iteration)
-        stop = (
-            exp.iterations
-            if max_iterations is None
-            else min(exp.iterations, start + max_iterations)
-        )
-        if start < stop:
-            say(
-                f"{exp.name}: {exp.particles} x {exp.worst_of_k} rollouts of {exp.duration:g} s "
-                f"per iteration on {evaluator.n_devices} device(s); the first iteration compiles"
-            )
-        for it in range(start, stop):
-            state, improved = run_iteration(exp, strategy, evaluator, state)
-            ckpt.save(it + 1, state)
-            rows = history_rows(state, objective)
-            write_history(out / "history.csv", rows)
-            if improved or not (out / "best.json").exists():
-                files.update(save_best(out, exp, table, state, objective))
-            done_secs = [r["seconds"] for r in rows[start:]]
-            steady = done_secs[1:] or done_secs
-            eta = (exp.iterations - (it + 1)) * float(np.mean(steady))
-            say(progress_line(exp, objective, state, eta, first=(it == start)))
-    finally:
-        ckpt.close()
-
-    rows = history_rows(state, objective)
-    files["history"] = out / "history.csv"
-    if not (out / "best.json").exists():
-        files.update(save_best(out, exp, table, state, objective))
-    files.setdefault("best", out / "best.json")
-    files.setdefault("best_params", out / "best_params.txt")
-    complete = int(state.iteration) >= exp.iterations
-    measures = None
-    if complete:
-        measures, f = final_evaluation(exp, evaluator, state, out, plots)
-        files.update(f)
-        if plots and objective.kind == "stage" and rows:
-            (out / "plots").mkdir(exist_ok=True)
-            files["plot_stage_progress"] = plot_stage_progress(
-                out / "plots" / "stage_progress.png", rows, objective.criteria
-            )
-        best = objective_mod.score_text(objective, state.best_stage, state.best_value)
-        d, epm = measures.get("distance_m"), measures.get("energy_J_per_m")
-        d = f"{d:.2f} m" if d is not None else "n/a"
-        epm = f"{epm:.0f} J/m" if epm is not None else "n/a"
-        say(
-            f"{exp.name}: done; best {best}; re-evaluated (no stage cap): {measures['score']}, "
-            f"distance {d}, {epm}; results in {out}"
-        )
-        surv = measures.get("perturbed_survival")
-        if surv is not None and surv < 1.0 and not measures.get("perturbed_reference_fell"):
-            say(
-                f"warning: only {surv:.0%} of {measures['perturbed_copies']} copies of the best "
-                f"perturbed by {measures['perturbed_relative']:g} (relative) stay up; this gait "
-                "depends on rounding (train with --worst-of or a perturbed environment)"
-            )
-    return TrainResult(
-        config=exp,
-        out_dir=out,
-        best_params=np.clip(np.asarray(state.best_params, np.float64), table.lower, table.upper),
-        best_stage=int(state.best_stage),
-        best_value=float(state.best_value),
-        best_score=objective_mod.score_text(objective, state.best_stage, state.best_value),
-        iterations_done=int(state.iteration),
-        complete=complete,
-        history=rows,
-        measures=measures,
-        files=files,
-        state=state,
-    )

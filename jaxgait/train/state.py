@@ -135,22 +135,46 @@ def iteration_keys(base: jax.Array, iteration: int) -> tuple[jax.Array, jax.Arra
     return k[0], k[1]
 
 
-def run_iteration(exp: Experiment, strategy, evaluator: PopulationEvaluator, state: TrainState):
-    """One iteration: ask, roll out P x k, worst of k, tell, update the best and history."""
-    t0 = time.perf_counter()
-    ask, tell = _ask_tell(strategy)
-    it = int(state.iteration)
-    k_ask, k_env = iteration_keys(state.key, it)
+@struct.dataclass
+class Asked:
+    """One run's half of an iteration before its rollouts: the population and its keys."""
+
+    population: jax.Array
+    opt_state: Any
+    env_key: jax.Array
+    max_stage: Any = None
+
+
+def ask_population(exp: Experiment, strategy, objective, state: TrainState) -> Asked:
+    """Ask the optimiser for the iteration's P parameter sets (and the stage cap)."""
+    ask, _ = _ask_tell(strategy)
+    k_ask, k_env = iteration_keys(state.key, int(state.iteration))
     population, opt_state = ask(k_ask, state.opt_state)
-    objective = evaluator.objective
     max_stage = None
     if exp.optimiser == "stage_pso" and exp.stage_cap and objective.kind == "stage":
         max_stage = opt_state.stage + 1
-    stage, value, _ = evaluator.evaluate(population, k_env, max_stage)
-    opt_state = tell(
-        opt_state, population, objective_mod.to_tell(exp.optimiser, objective, stage, value)
-    )
+    return Asked(population=population, opt_state=opt_state, env_key=k_env, max_stage=max_stage)
 
+
+def tell_population(
+    exp: Experiment,
+    strategy,
+    objective,
+    state: TrainState,
+    asked: Asked,
+    stage,
+    value,
+    seconds: float,
+    stats,
+):
+    """Tell the optimiser the worst-of-k ``stage, value`` (P,) of ``asked`` and record the
+    iteration (``seconds`` of wall time, lane counts ``stats``): ``(new state, improved)``."""
+    _, tell = _ask_tell(strategy)
+    it = int(state.iteration)
+    population = asked.population
+    opt_state = tell(
+        asked.opt_state, population, objective_mod.to_tell(exp.optimiser, objective, stage, value)
+    )
     i = stage_argbest(stage, value)
     better = bool(stage_better((stage[i], value[i]), (state.best_stage, state.best_value)))
     best_params = jnp.where(better, population[i], state.best_params)
@@ -160,9 +184,7 @@ def run_iteration(exp: Experiment, strategy, evaluator: PopulationEvaluator, sta
         [jnp.sum(stage == s) for s in range(INVALID_STAGE, objective.n_stages)]
     ).astype(jnp.int32)
     jax.block_until_ready(opt_state)
-    secs = time.perf_counter() - t0
     n_roll = population.shape[0] * exp.worst_of_k
-    stats = evaluator.last_stats
     util = float(stats.utilisation) if stats is not None else 0.0
     busy = float(stats.busy) if stats is not None else 0.0
     new = state.replace(
@@ -177,12 +199,25 @@ def run_iteration(exp: Experiment, strategy, evaluator: PopulationEvaluator, sta
         hist_iter_value=state.hist_iter_value.at[it].set(value[i]),
         hist_n_valid=state.hist_n_valid.at[it].set(jnp.sum(stage != INVALID_STAGE)),
         hist_stage_counts=state.hist_stage_counts.at[it].set(counts),
-        hist_seconds=state.hist_seconds.at[it].set(secs),
+        hist_seconds=state.hist_seconds.at[it].set(seconds),
         hist_rollouts=state.hist_rollouts.at[it].set(n_roll),
         hist_utilisation=state.hist_utilisation.at[it].set(util),
         hist_busy_steps=state.hist_busy_steps.at[it].set(busy),
     )
     return new, better
+
+
+def run_iteration(exp: Experiment, strategy, evaluator: PopulationEvaluator, state: TrainState):
+    """One iteration: ask, roll out P x k, worst of k, tell, update the best and history."""
+    t0 = time.perf_counter()
+    objective = evaluator.objective
+    asked = ask_population(exp, strategy, objective, state)
+    stage, value, _ = evaluator.evaluate(asked.population, asked.env_key, asked.max_stage)
+    jax.block_until_ready(stage)
+    secs = time.perf_counter() - t0
+    return tell_population(
+        exp, strategy, objective, state, asked, stage, value, secs, evaluator.last_stats
+    )
 
 
 def history_rows(state: TrainState, objective) -> list[dict]:
