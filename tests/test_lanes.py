@@ -111,3 +111,20 @@ def test_queued_training_evaluation_equals_direct_calls(fbl_model):
     for ev in (direct, queued):
         u = float(ev.last_stats.utilisation)
         assert 0.0 < u <= 1.0 and int(ev.last_stats.busy) > 0
+
+
+def test_automatic_lane_choice():
+    """None: a queue over CPU_AUTO_LANES per CPU device once a device holds more rollouts
+    than that (and no batch_size bounds the calls); 0: direct calls; N: N lanes."""
+    from jaxgait.train import get_experiment
+    from jaxgait.train.evaluator import CPU_AUTO_LANES, choose_lanes
+
+    assert jax.default_backend() == "cpu"
+    exp = get_experiment("exp3")  # 60 rollouts per iteration
+    assert exp.lanes is None and choose_lanes(exp, 1) == CPU_AUTO_LANES
+    assert choose_lanes(exp, 4) is None  # 15 per device
+    assert choose_lanes(exp.replace(particles=8), 1) is None
+    assert choose_lanes(exp.replace(particles=8), 1, n_runs=4) == CPU_AUTO_LANES
+    assert choose_lanes(exp.replace(batch_size=30), 1) is None
+    assert choose_lanes(exp.replace(lanes=0), 1) is None
+    assert choose_lanes(exp.replace(lanes=5), 1) == 5

@@ -61,7 +61,9 @@ class Body:
         key = bool(jax.config.jax_enable_x64)
         if key not in cache:
             with jax.ensure_compile_time_eval():  # concrete even if first used while tracing
-                cache[key] = mjx.put_model(self.mj_model)
+                # on this process's first device (MJX's default is jax.devices()[0], another
+                # process's under jax.distributed)
+                cache[key] = mjx.put_model(self.mj_model, device=jax.local_devices()[0])
         return cache[key]
 
     @property

@@ -168,8 +168,10 @@ class Model:
         cache = self.__dict__.setdefault("_templates", {})
         key = bool(jax.config.jax_enable_x64)
         if key not in cache:
-            with jax.ensure_compile_time_eval():  # concrete even if first used while tracing
-                cache[key] = mjx.make_data(self.mjx_model)
+            # concrete even if first used while tracing; on this process's first device
+            # (under jax.distributed the default placement may be another process's)
+            with jax.ensure_compile_time_eval():
+                cache[key] = mjx.make_data(self.mjx_model, device=jax.local_devices()[0])
         return cache[key]
 
     def mass_and_forces(self, qpos, qvel, qfrc_applied):

@@ -86,7 +86,8 @@ def _parser() -> argparse.ArgumentParser:
         "--lanes",
         type=int,
         default=S,
-        help="queue the rollouts over this many lanes per device (default: direct calls)",
+        help="queue the rollouts over this many lanes per device (0: direct calls; default: "
+        "automatic, a queue over 16 lanes per CPU device for populations larger than that)",
     )
     p.add_argument(
         "--seeds",

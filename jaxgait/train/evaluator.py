@@ -25,17 +25,42 @@ from jaxgait.train.setup import POP_AXIS, TrainError, get_model
 
 
 def population_mesh(devices: Sequence | None = None) -> Mesh:
-    """1-D mesh ``("pop",)`` over ``devices`` (default: all local devices)."""
-    devs = list(jax.local_devices() if devices is None else devices)
+    """1-D mesh ``("pop",)`` over ``devices`` (default: all devices of all processes, i.e.
+    the local devices unless ``jax.distributed`` joined several processes)."""
+    devs = list(jax.devices() if devices is None else devices)
     if not devs:
         raise TrainError("no devices to run on")
     return Mesh(np.array(devs), (POP_AXIS,))
 
 
 def shard_population(tree: Any, mesh: Mesh) -> Any:
-    """Put every leaf's leading (population) axis across the mesh (size a multiple of it)."""
+    """Put every leaf's leading (population) axis across the mesh (size a multiple of it).
+
+    Across processes (``jax.distributed``) every process holds the whole population (the
+    optimiser runs replicated) and hands each of its devices that device's rows."""
     sharding = NamedSharding(mesh, PartitionSpec(POP_AXIS))
+    if mesh.is_multi_process:
+
+        def put(x):
+            x = np.asarray(x)
+            return jax.make_array_from_callback(x.shape, sharding, lambda idx: x[idx])
+
+        return jax.tree.map(put, tree)
     return jax.device_put(tree, sharding)
+
+
+def to_host(tree: Any) -> Any:
+    """NumPy copies of every leaf; arrays spread over several processes are gathered first,
+    so every process gets the whole result."""
+
+    def get(x):
+        if isinstance(x, jax.Array) and not x.is_fully_addressable:
+            from jax.experimental import multihost_utils
+
+            return np.asarray(multihost_utils.process_allgather(x, tiled=True))
+        return np.asarray(x)
+
+    return jax.tree.map(get, tree)
 
 
 def padded_size(n: int, n_devices: int, batch_size: int | None) -> tuple[int, int]:
@@ -131,6 +156,23 @@ def _lane_scorer(model_name: str, cfg, objective, lanes: int, mesh: Mesh):
     return jax.jit(scored)
 
 
+#: Lanes per CPU device of the automatic queue (``Experiment.lanes`` None): on 2 cores one
+#: exp3 generation (60 rollouts) took 26-32 s over 12-20 lanes against 36 s in one direct
+#: call of 60 (benchmarks/README.md, "Training throughput").
+CPU_AUTO_LANES = 16
+
+
+def choose_lanes(exp: Experiment, n_devices: int, n_runs: int = 1) -> int | None:
+    """Lanes per device of the queue for ``exp``, or None for direct calls (see
+    ``Experiment.lanes``)."""
+    if exp.lanes is not None:
+        return exp.lanes or None
+    per_device = -(-n_runs * exp.particles * exp.worst_of_k // n_devices)
+    if exp.batch_size is not None or jax.default_backend() != "cpu":
+        return None
+    return CPU_AUTO_LANES if per_device > CPU_AUTO_LANES else None
+
+
 @functools.lru_cache(maxsize=16)
 def _ask_tell(strategy):
     return jax.jit(strategy.ask), jax.jit(strategy.tell)
@@ -163,7 +205,7 @@ class PopulationEvaluator:
         n = n_runs * exp.particles * exp.worst_of_k
         self.rows = padded_size(n, self.n_devices, exp.batch_size)[0]
         #: lanes per device of the scheduled evaluation (None: direct calls of :attr:`rows`)
-        self.lanes = exp.lanes
+        self.lanes = choose_lanes(exp, self.n_devices, n_runs)
         if self.lanes is not None:
             self.lane_score = _lane_scorer(
                 exp.model, self.sim_cfg, self.objective, self.lanes, self.mesh
@@ -172,8 +214,9 @@ class PopulationEvaluator:
         #: last evaluation: of the queue, or of the direct calls (whose lanes idle from the end
         #: of their rollout to the end of the call's longest one).
         self.last_stats = None
-        self.d_lim = jnp.asarray(exp.d_lim if math.isfinite(exp.d_lim) else jnp.inf, jnp.float32)
-        self.v0 = jnp.asarray(exp.v0, jnp.float32)
+        # host scalars: replicated on every device (and process) of the mesh
+        self.d_lim = np.float32(exp.d_lim if math.isfinite(exp.d_lim) else np.inf)
+        self.v0 = np.float32(exp.v0)
 
     def run(self, params: jax.Array, env_keys: jax.Array):
         """Raw rollouts of (B, D) params on the environments of (B,) keys, chunked and padded.
@@ -220,12 +263,17 @@ class PopulationEvaluator:
             m = real.size
             rows = trace.t.shape[0]
             ms = np.concatenate([np.asarray(cap)[real], np.zeros(rows - m, np.int32)])
-            s, v, ok = self.score(trace, events, summary, jnp.asarray(ms))
-            stage[real], value[real], valid[real] = (np.asarray(a)[:m] for a in (s, v, ok))
+            ms = shard_population(ms, self.mesh)
+            s, v, ok = to_host(self.score(trace, events, summary, ms))
+            stage[real], value[real], valid[real] = (a[:m] for a in (s, v, ok))
             if keep_first and first is None:
-                first = jax.tree.map(lambda x: np.asarray(x[0]), (trace, events, summary))
+                rec = (trace, events, summary)
+                if self.mesh.is_multi_process:  # gather the call, keep row 0
+                    first = jax.tree.map(lambda x: x[0], to_host(rec))
+                else:
+                    first = to_host(jax.tree.map(lambda x: x[0], rec))
             # each lane runs whole chunks until its rollout ends; the call until its longest
-            ran = np.ceil(np.asarray(summary.duration) / self.sim_cfg.chunk_s - 1e-6)
+            ran = np.ceil(to_host(summary.duration) / self.sim_cfg.chunk_s - 1e-6)
             ran = np.maximum(ran, 1).astype(np.int64)
             busy += int(ran[:m].sum()) * chunk_steps
             total += int(ran.max()) * rows * chunk_steps
@@ -250,9 +298,9 @@ class PopulationEvaluator:
         p = shard_population(group(jnp.asarray(params)), self.mesh)
         e = shard_population(jax.tree.map(group, env_all), self.mesh)
         ms = shard_population(group(jnp.asarray(max_stage, jnp.int32)), self.mesh)
-        stage, value, valid, stats = self.lane_score(p, e, ms, self.d_lim, self.v0)
-        self.last_stats = jax.tree.map(lambda x: np.asarray(x).sum(), stats)
-        flat = lambda x: np.asarray(x).reshape(d * per)[:n]
+        stage, value, valid, stats = to_host(self.lane_score(p, e, ms, self.d_lim, self.v0))
+        self.last_stats = jax.tree.map(lambda x: x.sum(), stats)
+        flat = lambda x: x.reshape(d * per)[:n]
         return flat(stage), flat(value).astype(np.float64), flat(valid)
 
     def evaluate(self, population: jax.Array, key: jax.Array, max_stage=None):

@@ -133,9 +133,13 @@ class Experiment:
         (thesis 2.2.1.2).
       v0: initial forward speed of the body [m/s].
       batch_size: rollouts per device call (None: the whole population x k at once).
-      lanes: None (default): the rollouts of an iteration run in direct calls of
-        ``batch_size``; a number: they are queued and run over this many lanes per device,
-        a lane taking the next rollout as soon as its own ended (:mod:`jaxgait.sim.lanes`).
+      lanes: a number: the rollouts of an iteration are queued and run over this many lanes
+        per device, a lane taking the next rollout as soon as its own ended
+        (:mod:`jaxgait.sim.lanes`); 0: direct calls of ``batch_size`` rollouts side by side;
+        None (default): automatic, a queue over
+        :data:`~jaxgait.train.evaluator.CPU_AUTO_LANES` lanes per CPU device when more
+        rollouts than that fall to a device and no ``batch_size`` is set, otherwise direct
+        calls (accelerators run wide batches at full speed).
     """
 
     name: str
@@ -214,7 +218,7 @@ class Experiment:
         if self.batch_size is not None:
             s("batch_size", _integer("batch_size", self.batch_size, 1))
         if self.lanes is not None:
-            s("lanes", _integer("lanes", self.lanes, 1))
+            s("lanes", _integer("lanes", self.lanes, 0))
         if not isinstance(self.stage_cap, bool):
             raise ExperimentError(f"invalid stage_cap={self.stage_cap!r}: must be true or false")
         if self.init is not None and (not isinstance(self.init, str) or not self.init):
