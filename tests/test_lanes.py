@@ -111,6 +111,13 @@ def test_queued_training_evaluation_equals_direct_calls(fbl_model):
     for ev in (direct, queued):
         u = float(ev.last_stats.utilisation)
         assert 0.0 < u <= 1.0 and int(ev.last_stats.busy) > 0
+    # a stage cap reorders the queue (highest cap first); every result still lands in its slot
+    cap = np.array([0, 5, 1, 5, 0, 2], np.int32)
+    s2, v2, ok2 = queued.scores(pop, keys, cap)
+    s3, v3, ok3 = direct.scores(pop, keys, cap)
+    np.testing.assert_array_equal(s2, s3)
+    np.testing.assert_array_equal(s2, np.minimum(s0, cap))
+    np.testing.assert_allclose(v2, v3, rtol=0, atol=1e-3)
 
 
 def test_automatic_lane_choice():

@@ -285,14 +285,25 @@ class PopulationEvaluator:
 
     def lane_scores(self, params: jax.Array, env_keys: jax.Array, max_stage):
         """Scheduled evaluation: the B rollouts split into one queue per device, each run
-        over :attr:`lanes` lanes; ``(stage, value, valid)`` (NumPy, B each).  The lane counts
+        over :attr:`lanes` lanes, those with the highest ``max_stage`` first;
+        ``(stage, value, valid)`` (NumPy, B each, in the order of ``params``).  The lane counts
         are kept in :attr:`last_stats`."""
         from jaxgait.world import envs
 
         n, d = params.shape[0], self.n_devices
         per = -(-n // d)
-        idx = np.arange(d * per)
-        idx = np.where(idx < n, idx, 0)  # the last queue is padded with copies of row 0
+        cap = np.asarray(max_stage, np.int32)
+        # The longest rollouts first, so that the queue's tail is short rollouts: a higher
+        # stage cap (stage PSO: the candidate's stage + 1) predicts a longer walk.  The
+        # ordered rollouts are dealt round-robin to the devices' queues.
+        order = np.argsort(-cap, kind="stable")
+        slots = np.full((d, per), -1)
+        for g in range(d):
+            mine = order[g::d]
+            slots[g, : mine.size] = mine
+        slots = slots.reshape(-1)
+        real = slots >= 0
+        idx = np.where(real, slots, order[0])  # short queues are padded with a copy
         env_all = envs.make_env_batch(self.env_cfg, env_keys)
         group = lambda x: x[idx].reshape((d, per) + x.shape[1:])
         p = shard_population(group(jnp.asarray(params)), self.mesh)
@@ -300,7 +311,12 @@ class PopulationEvaluator:
         ms = shard_population(group(jnp.asarray(max_stage, jnp.int32)), self.mesh)
         stage, value, valid, stats = to_host(self.lane_score(p, e, ms, self.d_lim, self.v0))
         self.last_stats = jax.tree.map(lambda x: x.sum(), stats)
-        flat = lambda x: x.reshape(d * per)[:n]
+
+        def flat(x):
+            out = np.empty(n, x.dtype)
+            out[slots[real]] = x.reshape(d * per)[real]
+            return out
+
         return flat(stage), flat(value).astype(np.float64), flat(valid)
 
     def evaluate(self, population: jax.Array, key: jax.Array, max_stage=None):
