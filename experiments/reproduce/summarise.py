@@ -28,7 +28,9 @@ def _json_cmd(args: list[str]) -> dict:
     out = subprocess.run(
         [sys.executable, "-m", *args, "--json"], capture_output=True, text=True, check=True
     )
-    return json.loads(out.stdout)
+    # the JSON document is the last line (MJX's import may print notices before it)
+    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("{")]
+    return json.loads(lines[-1])
 
 
 def perturbation_survival(folder: Path, n: int = 16, rel: float = 1e-6, duration: float = 30.0):
