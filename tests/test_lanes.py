@@ -118,6 +118,11 @@ def test_queued_training_evaluation_equals_direct_calls(fbl_model):
     np.testing.assert_array_equal(s2, s3)
     np.testing.assert_array_equal(s2, np.minimum(s0, cap))
     np.testing.assert_allclose(v2, v3, rtol=0, atol=1e-3)
+    # keep_first (the final evaluation) of a queued evaluator: a direct call of its own size
+    s4, v4, _, first = queued.scores(pop[:2], keys[:2], keep_first=True)
+    np.testing.assert_array_equal(s4, s0[:2])
+    np.testing.assert_allclose(v4, v0[:2], rtol=0, atol=1e-3)
+    assert first[0].t.shape[0] == 100  # row 0's trace: 1 s at 10 ms
 
 
 def test_automatic_lane_choice():

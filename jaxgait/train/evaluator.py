@@ -218,17 +218,17 @@ class PopulationEvaluator:
         self.d_lim = np.float32(exp.d_lim if math.isfinite(exp.d_lim) else np.inf)
         self.v0 = np.float32(exp.v0)
 
-    def run(self, params: jax.Array, env_keys: jax.Array):
+    def run(self, params: jax.Array, env_keys: jax.Array, rows: int | None = None):
         """Raw rollouts of (B, D) params on the environments of (B,) keys, chunked and padded.
 
-        Every call holds :attr:`rows` rollouts (padded with copies of row 0). Yields
-        ``(real, trace, events, summary)`` per call; ``real`` are the indices (into ``params``)
-        of the unpadded rows, which come first in the call.
+        Every call holds ``rows`` rollouts (default :attr:`rows`; padded with copies of row
+        0). Yields ``(real, trace, events, summary)`` per call; ``real`` are the indices (into
+        ``params``) of the unpadded rows, which come first in the call.
         """
         from jaxgait.world import envs
 
         n = params.shape[0]
-        rows = self.rows
+        rows = self.rows if rows is None else rows
         calls = -(-n // rows)
         env_all = envs.make_env_batch(self.env_cfg, env_keys)
         for c in range(calls):
@@ -259,7 +259,10 @@ class PopulationEvaluator:
         stage = np.zeros(n, np.int32)
         value = np.zeros(n, np.float64)
         valid = np.zeros(n, bool)
-        for real, trace, events, summary in self.run(params, env_keys):
+        # The iterations of a queued run compile no direct call, so the final evaluation's
+        # few rollouts get a call of their own size instead of one padded to :attr:`rows`.
+        rows = padded_size(n, self.n_devices, None)[0] if self.lanes is not None else None
+        for real, trace, events, summary in self.run(params, env_keys, rows):
             m = real.size
             rows = trace.t.shape[0]
             ms = np.concatenate([np.asarray(cap)[real], np.zeros(rows - m, np.int32)])
