@@ -112,7 +112,8 @@ def from_history(path: Path, lanes: int | None) -> int:
     if target is not None:
         verdict = "met" if est / 60 <= target else f"missed by {est / 60 / target:.1f}x"
         print(f"  target {target:g} min: {verdict}")
-    u = sum(b for b in busy) / sum(b / max(x, 1e-9) for b, x in zip(busy, util, strict=True))
+    # utilisation over the run: busy lane-steps / all lane-steps (each row's busy / utilisation)
+    u = sum(busy) / sum(b / max(x, 1e-9) for b, x in zip(busy, util, strict=True))
     print(f"  lane utilisation {100 * u:.1f} % of lane-steps (target 85 %)")
     realised = sum(busy[1:] or busy) / sum(secs[1:] or secs)
     print(f"  realised {realised:,.0f} env-steps/s (iterations after the first)")

@@ -95,9 +95,9 @@ def _batched_rollout(model_name: str, cfg):
     return jax.jit(run)
 
 
-@functools.lru_cache(maxsize=32)
-def _scorer(objective):
-    """jit: rollouts -> (stage (B,), value (B,), valid (B,)) for ``objective`` (hashable)."""
+def _score_fn(objective):
+    """``(trace, events, summary, max_stage) -> (stage, value, valid)`` of a batch of
+    rollouts (leading axis) for ``objective``: their measures, validity and fitness."""
     from jaxgait.analysis.measures import compute_measures
 
     measure = jax.vmap(functools.partial(compute_measures, skip=2))
@@ -108,7 +108,13 @@ def _scorer(objective):
         stage, value = objective.fitness(m, valid, max_stage)
         return stage, value, valid
 
-    return jax.jit(score)
+    return score
+
+
+@functools.lru_cache(maxsize=32)
+def _scorer(objective):
+    """jit: rollouts -> (stage (B,), value (B,), valid (B,)) for ``objective`` (hashable)."""
+    return jax.jit(_score_fn(objective))
 
 
 @functools.lru_cache(maxsize=16)
@@ -122,17 +128,10 @@ def _lane_scorer(model_name: str, cfg, objective, lanes: int, mesh: Mesh):
     program: under ``vmap`` over the groups the queue's branches (refill, scoring the ended
     lanes) would become selects computed at every chunk end, about 1.7x slower on exp3.
     """
-    from jaxgait.analysis.measures import compute_measures
     from jaxgait.sim.lanes import lane_rollouts
 
     model = get_model(model_name)
-    measure = jax.vmap(functools.partial(compute_measures, skip=2))
-
-    def finish(trace, events, summary, max_stage):
-        m = measure(trace, events, summary)
-        valid = objective_mod.rollout_valid(trace, summary)
-        stage, value = objective.fitness(m, valid, max_stage)
-        return stage, value, valid
+    finish = _score_fn(objective)
 
     def one_device(params, env, max_stage, d_lim, v0):
         c = dataclasses.replace(cfg, d_lim=d_lim, v0=v0)
