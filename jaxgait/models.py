@@ -29,6 +29,7 @@ from jaxgait.control.commands import Command
 from jaxgait.control.fbl import FBL_CONTROLLER
 from jaxgait.control.fblplus import FBLPLUS_CONTROLLER
 from jaxgait.control.interface import Controller
+from jaxgait.control.spinal import FBL_NET, spinal_controller
 from jaxgait.core.params import ParamTable
 from jaxgait.sim.model import planar_model
 from jaxgait.taga.sim import COMMANDS as TAGA_COMMANDS
@@ -74,6 +75,16 @@ def _taga_build(timestep=None):
 
 
 _REGISTRY: dict[str, ModelSpec] = {}
+#: Functions ``name -> bool`` tried, in order, for a name that is not registered: each may
+#: register it (e.g. a spinal-network model defined by a shipped preset, registered by
+#: :mod:`jaxgait.presets`) and returns whether it did.
+_RESOLVERS: list[Callable[[str], bool]] = []
+
+
+def add_resolver(fn: Callable[[str], bool]) -> None:
+    """Add a resolver of unregistered model names (see :data:`_RESOLVERS`)."""
+    if fn not in _RESOLVERS:
+        _RESOLVERS.append(fn)
 
 
 @functools.lru_cache(maxsize=16)
@@ -99,6 +110,7 @@ def unregister(name: str) -> None:
 
 register(planar_spec(FBL_CONTROLLER))
 register(planar_spec(FBLPLUS_CONTROLLER))
+register(planar_spec(spinal_controller(FBL_NET)))
 register(
     ModelSpec(
         name="taga",
@@ -118,6 +130,10 @@ def model_names(family: str | None = None) -> tuple[str, ...]:
 
 def get_spec(name: str) -> ModelSpec:
     """The :class:`ModelSpec` of ``name``; ``KeyError`` listing the registered names."""
+    if name not in _REGISTRY:
+        for fn in _RESOLVERS:
+            if fn(name) and name in _REGISTRY:
+                break
     try:
         return _REGISTRY[name]
     except KeyError:

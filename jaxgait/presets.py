@@ -37,6 +37,7 @@ import numpy as np
 
 from jaxgait import models
 from jaxgait.control.fblplus import FBLPLUS, lift_fbl
+from jaxgait.control.spinal import NetworkError, network_from_dict, spinal_controller
 from jaxgait.core.params import ParamTable, save_preset
 from jaxgait.core.resources import presets_dir
 
@@ -122,6 +123,58 @@ def resolve_preset(name_or_path: str | Path) -> Path:
     raise PresetError(f"{p}: file not found; {_available_text()}")
 
 
+# --------------------------------------------------------------------------- networks
+
+#: model name -> JSON text of the network it was registered with (by this module)
+_NETWORKS: dict[str, str] = {}
+
+
+def _register_network(doc: dict, model: str, where: str) -> None:
+    """Register the spinal-network model a preset defines (``"network"`` entry) under its
+    ``model`` name; a name already registered with the same network is kept, one with
+    another network is replaced (a rebuilt model), a built-in model name is refused."""
+    text = json.dumps(doc["network"], sort_keys=True)
+    if _NETWORKS.get(model) == text:
+        return
+    if model in models.model_names() and model not in _NETWORKS:
+        raise PresetError(
+            f"{where}: a network preset cannot take the name of the built-in model {model!r}"
+        )
+    if doc.get("table", "fbl") != "fbl":
+        raise PresetError(f"{where}: a network model drives FBL's table, not {doc['table']!r}")
+    try:
+        net = network_from_dict(doc["network"], model, str(doc.get("description", "")), where)
+    except NetworkError as e:
+        raise PresetError(str(e)) from None
+    models.register(models.planar_spec(spinal_controller(net)), replace=True)
+    _NETWORKS[model] = text
+
+
+def forget_network(name: str) -> None:
+    """Unregister a network model this module registered (e.g. a trial model)."""
+    if _NETWORKS.pop(name, None) is not None:
+        models.unregister(name)
+
+
+def _resolve_network_model(name: str) -> bool:
+    """Model resolver: a shipped preset of that name that defines a network."""
+    d = _presets_dir()
+    path = d / f"{name}.json" if d is not None and _is_bare_name(name) else None
+    if path is None or not path.is_file():
+        return False
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return False
+    if not isinstance(doc, dict) or "network" not in doc or doc.get("model") != name:
+        return False
+    _register_network(doc, name, str(path))
+    return True
+
+
+models.add_resolver(_resolve_network_model)
+
+
 # --------------------------------------------------------------------------- validation
 
 
@@ -146,6 +199,8 @@ def preset_from_dict(doc, where: str = "preset") -> tuple[str, np.ndarray, dict]
     if "params" not in doc:
         raise PresetError(f"{where}: no 'params' entry (expected {{name: value, ...}})")
     raw = doc["params"]
+    if "network" in doc:
+        _register_network(doc, model, where)
     if _pass_through(model):
         return model, np.zeros(0), doc
     if not isinstance(raw, dict):

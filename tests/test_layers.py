@@ -24,6 +24,7 @@ LAYERS = {
     "train": 11,
     "evaluate": 12,
     "robustness": 12,
+    "spinal": 13,
 }
 
 

@@ -103,6 +103,10 @@ def _cycle_stats(trace, events, channel, pct, n_cycles: int):
     return c.mean(0), c.std(0), len(cycles)
 
 
+#: Public name of the cycle statistics used by the figures of other packages.
+cycle_stats = _cycle_stats
+
+
 def _pearson(x: np.ndarray, y: np.ndarray) -> float:
     """Pearson correlation of two curves (0 if either is constant), as in measures.pearson."""
     xm, ym = x - x.mean(), y - y.mean()

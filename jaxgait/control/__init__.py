@@ -1,1 +1,2 @@
-"""Layer 4: controllers (the interface, gait phases, commands, FBL, FBL+) and delays."""
+"""Layer 4: controllers (the interface, gait phases, commands, FBL, FBL+, the spinal network
+with its interneurons and CPGs) and delays."""

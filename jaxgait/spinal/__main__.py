@@ -1,0 +1,5 @@
+import sys
+
+from jaxgait.spinal.cli import main
+
+sys.exit(main())

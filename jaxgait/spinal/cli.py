@@ -1,0 +1,292 @@
+"""``python -m jaxgait.spinal``: the spinal-network experiments of thesis ch. 7.
+
+Subcommands (each prints a table or JSON line, and writes its JSON and figures to ``--out``)::
+
+    variability PRESET [PRESET ...] [--duration 30] [--out DIR]     # Fig. 7.1
+    patterns PRESET_A PRESET_B [--out DIR]                           # Fig. 7.3
+    build PRESET [--kinds fblminus,3fbl,3fbl_prime,fbl_net] [--prefix NAME_]
+          [--rule walk|s] [--n-replace 5] [--s-max S] [--check-s 20] [--bas-ungated]
+          [--tau-in S] [--tau-mn S] [--ff-after N] [--out-dir DIR]  # the model presets
+    compare PRESET [PRESET ...] [--duration 60] [--out DIR]          # Fig. 7.2
+    robust PRESET [PRESET ...] [--seeds 5] [--out DIR]               # Fig. 7.4
+
+A built model preset is named ``<prefix><kind>_walk`` (``fblminus_walk``, ``3fbl_walk``,
+``3fbl_prime_walk``, ``fblnet_walk`` with an empty prefix) and holds the FBL parameters of
+the source gait plus the network.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from jaxgait.control.spinal import NETWORK_KINDS
+from jaxgait.core.jsonio import json_safe
+from jaxgait.presets import PresetError, load_preset, resolve_preset
+from jaxgait.spinal.build import N_REPLACE, build_network, model_preset, select, select_walking
+from jaxgait.spinal.record import SpinalError, analyse, record
+
+FILE_NAMES = {
+    "fblminus": "fblminus",
+    "3fbl": "3fbl",
+    "3fbl_prime": "3fbl_prime",
+    "fbl_net": "fblnet",
+}
+
+
+def _label(preset: str) -> str:
+    return Path(str(preset)).stem if str(preset).endswith(".json") else Path(str(preset)).name
+
+
+def _analysis(preset, duration, skip):
+    rec = record(preset, duration=duration)
+    if rec.fell:
+        raise SpinalError(f"{preset}: fell after {rec.duration:.1f} s of {duration} s")
+    return rec, analyse(rec, skip=skip)
+
+
+def _write_json(out: Path, name: str, doc) -> Path:
+    out.mkdir(parents=True, exist_ok=True)
+    p = out / name
+    p.write_text(json.dumps(json_safe(doc), indent=1, allow_nan=False) + "\n")
+    return p
+
+
+def cmd_variability(a) -> dict:
+    from jaxgait.spinal.figures import plot_variability
+
+    res, ans = {}, {}
+    for preset in a.presets:
+        _, an = _analysis(preset, a.duration, a.skip)
+        lab = _label(preset)
+        ans[lab] = an
+        res[lab] = {"stride_s": an.stride_s, "n_cycles": an.n_cycles, "table": an.table()}
+        print(f"\n{lab}: {an.n_cycles[0]} cycles per leg, stride {an.stride_s:.3f} s")
+        print(f"{'IN_SEN':<20} {'s':>8} {'v_mu':>8} {'v_sigma':>8} {'mean':>8}")
+        for r in sorted(res[lab]["table"], key=lambda r: r["s"]):
+            vals = " ".join(f"{r[k]:8.4f}" for k in ("s", "v_mu", "v_sigma", "mean"))
+            print(f"{r['name']:<20} {vals}")
+    out = Path(a.out)
+    res["figure"] = str(plot_variability(out / "fig7_1_variability.png", ans))
+    res["json"] = str(_write_json(out, "variability.json", res))
+    return res
+
+
+def cmd_patterns(a) -> dict:
+    from jaxgait.analysis.variability import pattern_correlation
+    from jaxgait.spinal.figures import plot_patterns
+
+    (_, an_a), (_, an_b) = (_analysis(p, a.duration, a.skip) for p in (a.a, a.b))
+    labels = (_label(a.a), _label(a.b))
+    corr = {
+        n: pattern_correlation(an_a.per_leg[n][0].pattern, an_b.per_leg[n][0].pattern)
+        for n in an_a.per_leg
+    }
+    for n, r in corr.items():
+        print(f"{n:<20} r = {r:+.2f}")
+    out = Path(a.out)
+    fig = plot_patterns(out / "fig7_3_patterns.png", an_a, an_b, labels)
+    res = {"gaits": labels, "correlation": corr, "figure": str(fig)}
+    res["json"] = str(_write_json(out, "patterns.json", res))
+    return res
+
+
+def cmd_build(a) -> dict:
+    kinds = [k.strip() for k in a.kinds.split(",") if k.strip()]
+    bad = sorted(set(kinds) - set(NETWORK_KINDS))
+    if bad or not kinds:
+        raise SpinalError(f"--kinds: unknown {bad}; valid: {', '.join(NETWORK_KINDS)}")
+    rec, an = _analysis(a.preset, a.duration, a.skip)
+    source = str(a.preset)
+    settings = {"rule": a.rule, "n_replace": a.n_replace, "candidates": a.candidates}
+    if a.rule == "walk":
+        print(f"greedy selection with a {a.check_s:g} s walking check (least variable first):")
+        replaced, tried = select_walking(
+            an, rec.vec, source, a.n_replace, a.candidates, check_s=a.check_s
+        )
+        settings.update(check_s=a.check_s, tried=tried)
+    else:
+        replaced = select(an, a.n_replace, a.s_max, a.candidates)
+        settings.update(s_max=a.s_max)
+    print("replaced:", ", ".join(replaced) or "(none)")
+    out = Path(a.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = {}
+    for kind in kinds:
+        name = f"{a.prefix}{FILE_NAMES[kind]}_walk"
+        desc = (
+            f"{kind} (thesis 6.2.1) built from {_label(source)} by `python -m jaxgait.spinal "
+            f"build`: {len(replaced)} IN_SEN replaced ({', '.join(replaced) or 'none'})"
+        )
+        net = build_network(
+            kind,
+            an,
+            replaced,
+            name,
+            bas_gated=not a.bas_ungated,
+            tau_in=a.tau_in,
+            tau_mn=a.tau_mn,
+            description=desc,
+        )
+        net = type(net)(**{**net.__dict__, "ff_after": a.ff_after})
+        doc = model_preset(net, kind, rec.vec, source, replaced, an, settings)
+        path = out / f"{name}.json"
+        path.write_text(json.dumps(json_safe(doc), indent=1, allow_nan=False) + "\n")
+        written[kind] = str(path)
+        print(f"wrote {path}")
+    return {"replaced": replaced, "presets": written, "settings": settings}
+
+
+def cmd_compare(a) -> dict:
+    from jaxgait import evaluate
+    from jaxgait.spinal.figures import plot_models
+
+    runs, res = {}, {}
+    for preset in a.presets:
+        r = evaluate.run(preset, duration=a.duration)
+        runs[_label(preset)] = r
+        keys = (
+            "duration_s",
+            "distance_m",
+            "fell",
+            "mean_speed_mps",
+            "c_angles",
+            "corr_hip",
+            "corr_knee",
+            "corr_ankle",
+            "energy_per_m",
+        )
+        res[_label(preset)] = {k: r.report.get(k) for k in keys}
+        print(_label(preset), json.dumps(json_safe(res[_label(preset)])))
+    out = Path(a.out)
+    res["figure"] = str(plot_models(out / "fig7_2_models.png", runs))
+    res["json"] = str(_write_json(out, "compare.json", res))
+    return res
+
+
+def cmd_robust(a) -> dict:
+    from jaxgait import evaluate, models
+    from jaxgait.analysis.robustness import RobustnessConfig, robustness
+    from jaxgait.spinal.figures import plot_robustness
+
+    rows, res = {}, {}
+    for preset in a.presets:
+        name, vec, _ = load_preset(preset)
+        lab = _label(preset)
+        rob = robustness(models.get_model(name), vec, RobustnessConfig(seeds=a.seeds, seed=a.seed))
+        ev = evaluate.run(preset, duration=a.duration)
+        res[lab] = {"robustness": rob, "c_angles": ev.report.get("c_angles")}
+        rows[lab] = {
+            "c_angles": (float(ev.report.get("c_angles") or 0.0), 0.0),
+            "max_push_N": (
+                float(rob.get("max_push_N", np.nan)),
+                float(rob.get("max_push_N_sd", 0)),
+            ),
+            "max_slope_pct": (
+                float(rob.get("max_slope_pct", np.nan)),
+                float(rob.get("max_slope_pct_sd", 0)),
+            ),
+        }
+        print(lab, json.dumps(json_safe(rows[lab])))
+    out = Path(a.out)
+    res["figure"] = str(plot_robustness(out / "fig7_4_robustness.png", rows))
+    res["json"] = str(_write_json(out, "robustness.json", res))
+    return res
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m jaxgait.spinal", description=__doc__.split("\n")[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+
+    def common(q, out="runs/spinal"):
+        q.add_argument("--duration", type=float, default=30.0, help="walk [s] (default 30)")
+        q.add_argument("--skip", type=int, default=2, help="start cycles left out (default 2)")
+        q.add_argument("--out", default=out, help=f"output folder (default {out})")
+
+    q = sub.add_parser("variability", help="Fig. 7.1: variability of every IN_SEN")
+    q.add_argument("presets", nargs="+")
+    common(q)
+    q = sub.add_parser("patterns", help="Fig. 7.3: nominal patterns of two gaits")
+    q.add_argument("a")
+    q.add_argument("b")
+    common(q)
+    q = sub.add_parser("build", help="build FBL-, 3FBL, 3FBL' (and FBL net) presets from a gait")
+    q.add_argument("preset")
+    common(q)
+    q.add_argument("--kinds", default=",".join(NETWORK_KINDS))
+    q.add_argument("--prefix", default="", help="name prefix of the written presets")
+    q.add_argument(
+        "--rule",
+        choices=("walk", "s"),
+        default="walk",
+        help="walk: least variable first, kept if the models still walk (default); "
+        "s: the n least variable by s (thesis)",
+    )
+    q.add_argument("--n-replace", type=int, default=N_REPLACE)
+    q.add_argument("--s-max", type=float, default=None, help="(rule s) only IN with s below")
+    q.add_argument("--candidates", choices=("muscle", "replaceable"), default="muscle")
+    q.add_argument("--check-s", type=float, default=20.0, help="(rule walk) check walk [s]")
+    q.add_argument("--bas-ungated", action="store_true", help="IN_BAS always on (cycle mean)")
+    q.add_argument("--tau-in", type=float, default=0.0, help="SEN -> IN link [s] (default 0)")
+    q.add_argument("--tau-mn", type=float, default=0.0, help="IN -> MN link [s] (default 0)")
+    q.add_argument("--ff-after", type=int, default=3, help="feedforward from this right touchdown")
+    q.add_argument("--out-dir", default="runs/spinal/models")
+    q = sub.add_parser("compare", help="Fig. 7.2: models on flat ground vs Winter")
+    q.add_argument("presets", nargs="+")
+    common(q)
+    q.set_defaults(duration=60.0)
+    q = sub.add_parser("robust", help="Fig. 7.4: C_angles, max push, max slope per model")
+    q.add_argument("presets", nargs="+")
+    common(q)
+    q.add_argument("--seeds", type=int, default=5)
+    q.add_argument("--seed", type=int, default=0)
+    return p
+
+
+COMMANDS = {
+    "variability": cmd_variability,
+    "patterns": cmd_patterns,
+    "build": cmd_build,
+    "compare": cmd_compare,
+    "robust": cmd_robust,
+}
+
+
+def main(argv=None) -> int:
+    """CLI entry point: 0 on success, 2 on bad input."""
+    try:
+        a = _parser().parse_args(argv)
+    except SystemExit as e:
+        return int(e.code) if isinstance(e.code, int) else 2
+    try:
+        for p in getattr(a, "presets", []) + [
+            getattr(a, x) for x in ("a", "b", "preset") if hasattr(a, x)
+        ]:
+            resolve_preset(p)
+        res = COMMANDS[a.cmd](a)
+    except (SpinalError, PresetError, ValueError) as e:
+        print(f"jaxgait.spinal {a.cmd}: error: {e}", file=sys.stderr)
+        return 2
+    print(
+        json.dumps(
+            json_safe(
+                {
+                    "command": a.cmd,
+                    **{
+                        k: v
+                        for k, v in res.items()
+                        if k in ("json", "figure", "presets", "replaced")
+                    },
+                }
+            )
+        )
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

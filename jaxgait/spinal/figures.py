@@ -1,0 +1,158 @@
+"""Figures of the spinal-network chapter (thesis Fig. 7.1-7.4) as PNG files.
+
+Each function draws on its own Agg :class:`~matplotlib.figure.Figure` and returns the path.
+
+* :func:`plot_variability`: s, v_mu and v_sigma of every IN_SEN for one or more gaits
+  (Fig. 7.1), the replaced IN marked with a star;
+* :func:`plot_patterns`: the nominal patterns (right leg) of two gaits overlaid with their
+  correlations (Fig. 7.3);
+* :func:`plot_models`: joint angles over the cycle against Winter, their correlations and
+  the vertical GRF of several models (Fig. 7.2);
+* :func:`plot_robustness`: C_angles, max push and max slope change, mean +- SD (Fig. 7.4).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from jaxgait.analysis import refdata
+from jaxgait.analysis.plots import cycle_stats
+from jaxgait.analysis.variability import S_PERIODIC, pattern_correlation
+from jaxgait.control.interneurons import IN_NAMES, IN_SEN
+from jaxgait.spinal.record import Analysis
+
+COLORS = ("tab:blue", "tab:green", "tab:orange", "tab:red", "tab:purple", "tab:brown")
+
+
+def _save(fig: Figure, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    FigureCanvasAgg(fig)
+    fig.savefig(path, dpi=100)
+    return path
+
+
+def plot_variability(path, analyses: dict[str, Analysis], replaced=()) -> Path:
+    """Fig. 7.1: grouped bars of s, v_mu, v_sigma per IN_SEN, one colour per gait."""
+    fig = Figure(figsize=(12, 8), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    x = np.arange(len(IN_NAMES))
+    w = 0.8 / max(len(analyses), 1)
+    for j, (label, an) in enumerate(analyses.items()):
+        for ax, what in zip(axes, ("s", "v_mu", "v_sigma"), strict=True):
+            vals = [an.factor(n, what) for n in IN_NAMES]
+            ax.bar(x + (j - (len(analyses) - 1) / 2) * w, vals, w, color=COLORS[j % 6], label=label)
+    axes[0].axhline(S_PERIODIC, color="0.4", ls="--", lw=1, label=f"s = {S_PERIODIC}")
+    for ax, what, unit in zip(
+        axes, ("s", "v_mu", "v_sigma"), ("[-]", "[stim]", "[stim]"), strict=True
+    ):
+        ax.set_ylabel(f"{what} {unit}")
+        ax.grid(alpha=0.3, axis="y")
+        ax.set_yscale("symlog", linthresh=1e-3)
+    for k, n in enumerate(IN_NAMES):
+        if n in replaced:
+            axes[0].annotate("*", (k, 0), ha="center", va="bottom", color="red", fontsize=16)
+    axes[0].legend(fontsize=8, ncol=4)
+    axes[-1].set_xticks(x, IN_NAMES, rotation=60, ha="right", fontsize=8)
+    fig.suptitle(
+        "IN_SEN periodic variability (thesis Fig. 7.1): stability factor s (eq. 6.11), "
+        "v_mu and v_sigma (eq. 6.14-6.15); * replaced",
+        fontsize=10,
+    )
+    return _save(fig, path)
+
+
+def plot_patterns(path, a: Analysis, b: Analysis, labels=("A", "B")) -> Path:
+    """Fig. 7.3: right-leg nominal patterns of two gaits, with their correlations."""
+    fig = Figure(figsize=(13, 9), layout="constrained")
+    axes = fig.subplots(3, 5).ravel()
+    ph = np.arange(a.per_leg[IN_NAMES[0]][0].pattern.size)
+    ph = 100.0 * ph / ph.size
+    for ax, i in zip(axes, IN_SEN, strict=True):
+        pa, pb = a.per_leg[i.name][0].pattern, b.per_leg[i.name][0].pattern
+        ax.plot(ph, pa, color="k", lw=1.3, label=labels[0])
+        ax.plot(ph, pb, color="k", lw=1.3, ls="--", label=labels[1])
+        ax.set_title(f"{i.name}  r = {pattern_correlation(pa, pb):.2f}", fontsize=8)
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=7)
+    axes[0].legend(fontsize=7)
+    for ax in axes[10:]:
+        ax.set_xlabel("cycle from touchdown [%]", fontsize=8)
+    fig.suptitle("Normalised IN_SEN nominal patterns (thesis Fig. 7.3), right leg", fontsize=10)
+    return _save(fig, path)
+
+
+def plot_models(path, runs: dict, n_cycles: int = 10) -> Path:
+    """Fig. 7.2: joint angles vs Winter, their correlations and the vertical GRF of several
+    evaluated models (``{label: jaxgait.evaluate.EvalRun}``)."""
+    ref, grf_ref = refdata.winter_walking_kinematics(), refdata.winter_walking_grf()
+    fig = Figure(figsize=(13, 7), layout="constrained")
+    top = fig.subfigures(2, 1)
+    axa = top[0].subplots(1, 3)
+    axb = top[1].subplots(1, 2)
+    names = ("hip", "knee", "ankle")
+    for j in range(3):
+        m, s = ref.mean_deg[:, j], ref.sd_deg[:, j]
+        axa[j].fill_between(ref.gait_cycle_pct, m - s, m + s, color="0.8", lw=0)
+        axa[j].plot(ref.gait_cycle_pct, m, color="0.5", label="human (Winter)")
+    m, s = grf_ref.mean_bw, grf_ref.sd_bw
+    axb[1].fill_between(grf_ref.gait_cycle_pct, m - s, m + s, color="0.8", lw=0)
+    axb[1].plot(grf_ref.gait_cycle_pct, m, color="0.5", label="human (Winter)")
+    width = 0.8 / max(len(runs), 1)
+    for k, (label, r) in enumerate(runs.items()):
+        c = COLORS[k % 6]
+        ang = np.rad2deg(np.asarray(r.trace.qpos)[:, 3:6].astype(float))
+        mean, _, n = cycle_stats(r.trace, r.events, ang, ref.gait_cycle_pct, n_cycles)
+        speed = r.report.get("mean_speed_mps")
+        lab = f"{label} ({speed:.2f} m/s)" if isinstance(speed, float) else label
+        if n:
+            for j in range(3):
+                axa[j].plot(ref.gait_cycle_pct, mean[:, j], color=c, label=lab)
+        corr = [float(r.measures.get(f"corr_{nm}", np.nan)) for nm in names]
+        axb[0].bar(
+            np.arange(3) + (k - (len(runs) - 1) / 2) * width, corr, width, color=c, label=label
+        )
+        fz = np.asarray(r.trace.grf)[:, 0, 1].astype(float) / (float(r.summary.mass) * 9.81)
+        gm, _, n = cycle_stats(r.trace, r.events, fz, grf_ref.gait_cycle_pct, n_cycles)
+        if n:
+            axb[1].plot(grf_ref.gait_cycle_pct, gm, color=c, label=label)
+    for j, name in enumerate(names):
+        axa[j].set_title(f"{name} angle [deg]", fontsize=9)
+        axa[j].set_xlabel("gait cycle [%]")
+        axa[j].grid(alpha=0.3)
+    axa[0].legend(fontsize=7)
+    axb[0].set_xticks(range(3), names)
+    axb[0].set_ylim(-1, 1)
+    axb[0].set_title("correlation with the human mean", fontsize=9)
+    axb[0].grid(alpha=0.3, axis="y")
+    axb[1].set_title("right vertical GRF [BW]", fontsize=9)
+    axb[1].set_xlabel("gait cycle [%]")
+    axb[1].legend(fontsize=7)
+    axb[1].grid(alpha=0.3)
+    fig.suptitle("Models compared on flat ground (thesis Fig. 7.2)", fontsize=10)
+    return _save(fig, path)
+
+
+def plot_robustness(path, rows: dict[str, dict]) -> Path:
+    """Fig. 7.4: ``{label: {"c_angles": (mean, sd), "max_push_N": (mean, sd),
+    "max_slope_pct": (mean, sd)}}`` as three bar panels."""
+    fig = Figure(figsize=(11, 3.6), layout="constrained")
+    axes = fig.subplots(1, 3)
+    labels = list(rows)
+    for ax, key, title in zip(
+        axes,
+        ("c_angles", "max_push_N", "max_slope_pct"),
+        ("joint-angle correlation C_angles", "max push [N]", "max slope change [%]"),
+        strict=True,
+    ):
+        mean = [rows[lab][key][0] for lab in labels]
+        sd = [rows[lab][key][1] for lab in labels]
+        ax.bar(labels, mean, yerr=sd, color=[COLORS[k % 6] for k in range(len(labels))], capsize=4)
+        ax.set_title(title, fontsize=9)
+        ax.grid(alpha=0.3, axis="y")
+    fig.suptitle("Robustness of the models, default control vector (thesis Fig. 7.4)", fontsize=10)
+    return _save(fig, path)

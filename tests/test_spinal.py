@@ -1,0 +1,216 @@
+"""The spinal network (thesis 6.1-6.2): IN_SEN against hand-computed values, the network
+reorganisation against FBL, IN_BAS and IN_CPG outputs, the control vector, network presets."""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxgait import models, presets, sim
+from jaxgait.control import fbl
+from jaxgait.control import interneurons as ins
+from jaxgait.control.commands import schedule
+from jaxgait.control.spinal import (
+    FBL_NET,
+    Network,
+    NetworkError,
+    network_from_dict,
+    network_to_dict,
+    spinal_controller,
+)
+from jaxgait.spinal.record import record
+from jaxgait.world import envs
+
+P = fbl.FBL.unpack(jnp.asarray(fbl.FBL.init, jnp.float32))
+K = ins.index
+
+
+def _sensors(rng, rows):
+    s = rng.uniform(0.0, 1.5, (rows, fbl.N_SENSORS)).astype(np.float32)
+    stance = rng.random(rows) < 0.5
+    s[:, fbl.S_STANCE] = stance
+    s[:, fbl.S_DS] = stance & (rng.random(rows) < 0.5)
+    s[:, fbl.S_TRUNK] = rng.normal(0.1, 0.2, rows)
+    s[:, fbl.S_DTRUNK] = rng.normal(0, 1.0, rows)
+    s[:, fbl.S_KNEE] = rng.uniform(2.6, 3.3, rows)
+    s[:, fbl.S_DKNEE] = rng.normal(0, 2.0, rows)
+    s[:, fbl.S_THETA_TO] = rng.normal(0.1, 0.1, rows)
+    return jnp.asarray(s)
+
+
+def test_interneurons_by_hand():
+    s = np.zeros((1, fbl.N_SENSORS), np.float32)
+    s[0, fbl.S_F] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]  # HFL GLU HAM VAS GAS SOL TA
+    s[0, fbl.S_L] = [0.9, 1.0, 1.1, 1.0, 1.0, 1.0, 0.8]
+    s[0, fbl.S_LOAD], s[0, fbl.S_LOAD_C] = 0.8, 0.3
+    s[0, fbl.S_STANCE], s[0, fbl.S_DS] = 1.0, 1.0
+    s[0, fbl.S_TRUNK], s[0, fbl.S_DTRUNK] = 0.2, 0.5
+    s[0, fbl.S_KNEE], s[0, fbl.S_DKNEE] = 3.0, 1.0
+    s[0, fbl.S_THETA_TO] = 0.15
+    x, gate = ins.insen_inputs(P, jnp.asarray(s))
+    x, gate = np.asarray(x[0]), np.asarray(gate[0])
+    p = {k: float(v) for k, v in P.items()}
+    u1 = p["k_p1"] * (0.2 - p["theta_ref"]) + p["k_d"] * 0.5
+    u2 = p["k_p2"] * (0.2 - p["theta_ref"]) + p["k_d"] * 0.5
+    want = {
+        "SOL<-SOL MFF ST": p["G_SOL"] * 0.6,
+        "TA<-TA MLF CY": p["G_TA"] * (0.8 - p["loff_TA"]),
+        "TA<-SOL MFF ST": p["G_TA_SOL"] * 0.6,
+        "GAS<-GAS MFF ST": p["G_GAS"] * 0.5,
+        "VAS<-VAS MFF ST": p["G_VAS"] * 0.4,
+        "VAS<-GCF STend": p["k_bw"] * 0.3,
+        "HAM<-GIF ST": max(u1, 0) * p["k_bw"] * 0.8,
+        "GLU<-GIF ST": max(u2, 0) * p["k_bw"] * 0.8,
+        "HF<-GIF ST": max(-u1, 0) * p["k_bw"] * 0.8,
+        "HAM<-HAM MFF SW": p["G_HAM"] * 0.3,
+        "GLU<-GLU MFF SW": p["G_GLU"] * 0.2,
+        "HF<-HF MLF SW": p["G_HFL"] * max(0.9 - p["loff_HFL"], 0),
+        "HF<-HAM MLF SW": p["G_HAM_HFL"] * max(1.1 - p["loff_HAM"], 0),
+        "HF<-TL SW": p["k_lean"] * (0.15 - p["theta_ref"]),
+        "VAS<-KNEE OPF ST": p["k_phi"] * (3.0 - p["phi_k_off"]),
+    }
+    for name, v in want.items():
+        assert x[K(name)] == pytest.approx(v, rel=1e-5, abs=1e-7), name
+    on = {i.name for i in ins.IN_SEN if i.gate in ("stance", "cycle", "stance_end")}
+    assert {n for n in ins.IN_NAMES if gate[K(n)] == 1} == on
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_motoneurons_sum_to_fbl_law(seed):
+    s = _sensors(np.random.default_rng(seed), 64)
+    x, gate = ins.insen_inputs(P, s)
+    stim = ins.motoneurons(ins.direct_terms(P, s), x * gate)
+    np.testing.assert_allclose(np.asarray(stim), np.asarray(fbl.fbl_stimulation(P, s)), atol=2e-6)
+
+
+def _vec():
+    _, vec, _ = presets.load_preset("fbl_walk")
+    return jnp.asarray(vec, jnp.float32)
+
+
+_ROLLOUTS = {}
+
+
+def _roll(model, commands=None):
+    """A 1.2 s rollout of fbl_walk on flat ground (one compiled function per model)."""
+    if id(model) not in _ROLLOUTS:
+        cfg = sim.SimConfig(duration=1.2)
+        _ROLLOUTS[id(model)] = (model, sim.make_rollout(model, cfg, batched=False))
+    env = envs.make_env("flat", jax.random.PRNGKey(0))
+    return _ROLLOUTS[id(model)][1](_vec(), env, commands)
+
+
+def test_reorganised_fbl_walks_like_fbl():
+    tr_f, _, sm_f, _ = _roll(models.get_model("fbl"))
+    tr_n, _, sm_n, _ = _roll(models.get_model("fbl_net"))
+    # the same law summed in another order: float32 rounding only, over 1.2 s of walking
+    np.testing.assert_allclose(np.asarray(tr_n.stim), np.asarray(tr_f.stim), atol=2e-3)
+    np.testing.assert_allclose(np.asarray(tr_n.qpos), np.asarray(tr_f.qpos), atol=2e-3)
+    assert not bool(sm_n.fell)
+
+
+def test_groups_alone_change_nothing_and_fast_links_pass_through():
+    # every IN_SEN kept (FBL- with nothing replaced), spread over the three control groups,
+    # with links 5x faster than the time step: FBL reorganised within 1e-2 (a jump of the
+    # input lags by e^(-dt/tau) = 0.7 % of its size for one step), 1e-4 on average
+    from jaxgait.sim.model import planar_model
+
+    groups = tuple(("sen", "cpg", "bas")[k % 3] for k in range(ins.N_IN))
+    net = Network(name="t_groups", groups=groups, tau_in=1e-4, tau_mn=1e-4)
+    a = _roll(planar_model(spinal_controller(net)))[0]
+    b = _roll(models.get_model("fbl_net"))[0]
+    diff = np.abs(np.asarray(a.stim) - np.asarray(b.stim))
+    assert 0 < diff.max() < 1e-2 and diff.mean() < 1e-4
+
+
+def test_a_changed_control_vector_acts_only_after_the_change():
+    model = models.get_model("fbl_net")
+    sched = schedule(model.controller.commands, [(0.0, {}), (0.6, {"A_INSEN": 0.7})])
+    base = _roll(model)[0]
+    changed = _roll(model, sched)[0]
+    t = np.asarray(base.t)
+    before, after = t < 0.6 - 1e-6, t > 0.65
+    np.testing.assert_array_equal(np.asarray(base.stim)[before], np.asarray(changed.stim)[before])
+    assert np.abs(np.asarray(base.stim)[after] - np.asarray(changed.stim)[after]).max() > 0.01
+
+
+def _feedforward_doc(tmp_path, ff_after=0):
+    kb, kc = K("TA<-SOL MFF ST"), K("GLU<-GLU MFF SW")
+    kinds = ["sen"] * ins.N_IN
+    kinds[kb], kinds[kc] = "bas", "cpg"
+    ph = np.arange(100) / 100
+    pat = np.sin(2 * np.pi * ph) / np.std(np.sin(2 * np.pi * ph))
+    net = Network(
+        name="t_feedforward",
+        kinds=tuple(kinds),
+        groups=tuple("cpg" if k == "cpg" else k for k in kinds),
+        bas_level=tuple(0.123 if k == kb else 0.0 for k in range(ins.N_IN)),
+        cpg_mean=tuple(0.2 if k == kc else 0.0 for k in range(ins.N_IN)),
+        cpg_sd=tuple(0.05 if k == kc else 0.0 for k in range(ins.N_IN)),
+        cpg_pattern=np.broadcast_to(pat, (2, ins.N_IN, 100)).copy(),
+        omega=1.0,
+        ff_after=ff_after,
+    )
+    doc = {
+        "model": net.name,
+        "table": "fbl",
+        "params": dict(zip(fbl.FBL.names, map(float, np.asarray(_vec())), strict=False)),
+        "network": network_to_dict(net),
+    }
+    path = tmp_path / "net.json"
+    path.write_text(json.dumps(doc))
+    return path, kb, kc
+
+
+def test_basal_and_cpg_interneuron_outputs(tmp_path):
+    path, kb, kc = _feedforward_doc(tmp_path)
+    try:
+        rec = record(path, duration=1.0)
+        gate = rec.gate[:, :, kb]
+        np.testing.assert_allclose(rec.out[:, :, kb], 0.123 * gate, rtol=1e-6)
+        assert set(np.unique(gate)) == {0.0, 1.0}
+        cpg_out = rec.out[rec.t > 0.1, :, kc]  # mu + sd g(theta), whatever the gate
+        assert cpg_out.min() >= 0.2 - 0.05 * np.sqrt(2) * 1.02
+        assert cpg_out.max() <= 0.2 + 0.05 * np.sqrt(2) * 1.02
+        assert cpg_out.max() - cpg_out.min() > 0.05
+    finally:
+        presets.forget_network("t_feedforward")
+
+
+def test_feedforward_waits_for_its_touchdown(tmp_path):
+    path, kb, _ = _feedforward_doc(tmp_path, ff_after=1)
+    try:
+        rec = record(path, duration=1.5)
+        first = np.flatnonzero(rec.stance[1:, 0] & ~rec.stance[:-1, 0])[0] + 1
+        sensory = rec.out[:first, 0, kb]
+        assert np.all(np.abs(sensory - 0.123) > 1e-6) and np.any(sensory > 0)
+        on = rec.out[first + 1 :, 0, kb]
+        np.testing.assert_allclose(on, 0.123 * rec.gate[first + 1 :, 0, kb], rtol=1e-6)
+    finally:
+        presets.forget_network("t_feedforward")
+
+
+def test_network_json_round_trip_and_errors(tmp_path):
+    path, kb, kc = _feedforward_doc(tmp_path)
+    doc = json.loads(path.read_text())
+    net = network_from_dict(doc["network"], "t_rt")
+    again = network_to_dict(net)
+    assert again == doc["network"]
+    assert net.members("bas") == (ins.IN_NAMES[kb],) and net.members("cpg") == (ins.IN_NAMES[kc],)
+    bad = json.loads(path.read_text())
+    bad["network"]["kinds"]["NOPE<-X"] = "bas"
+    with pytest.raises(presets.PresetError, match=r"net.json.*unknown IN_SEN"):
+        presets.preset_from_dict(bad, where=str(path))
+    bad = json.loads(path.read_text())
+    bad["network"]["kinds"]["SOL<-SOL MFF ST"] = "cpg"  # a CPG without a pattern
+    with pytest.raises(presets.PresetError, match="need finite patterns"):
+        presets.preset_from_dict(bad, where="x.json")
+    bad = json.loads(path.read_text())
+    bad["model"] = "fbl"
+    with pytest.raises(presets.PresetError, match="built-in model"):
+        presets.preset_from_dict(bad, where="x.json")
+    with pytest.raises(NetworkError, match="kinds"):
+        Network(name="x", kinds=("sen",) * 3)
+    assert "fbl_net" in models.model_names() and FBL_NET.members("bas") == ()
