@@ -214,3 +214,84 @@ def test_network_json_round_trip_and_errors(tmp_path):
     with pytest.raises(NetworkError, match="kinds"):
         Network(name="x", kinds=("sen",) * 3)
     assert "fbl_net" in models.model_names() and FBL_NET.members("bas") == ()
+
+
+# ------------------------------------------------------------------- building models
+
+
+def _analysis(s_of):
+    from jaxgait.analysis.variability import Variability
+    from jaxgait.spinal.record import Analysis
+
+    per_leg = {}
+    for k, n in enumerate(ins.IN_NAMES):
+        v = Variability(
+            s=s_of(n, k),
+            v_mu=0.01,
+            v_sigma=0.02,
+            mu=np.full(5, 0.1 * k),
+            sigma=np.full(5, 0.02),
+            pattern=np.sin(2 * np.pi * np.arange(100) / 100) * np.sqrt(2),
+            durations=np.full(5, 1.1),
+            mean_active=0.2 * k,
+        )
+        per_leg[n] = (v, v)
+    return Analysis(per_leg=per_leg, stride_s=1.25, first_td=(0.2, 0.7), n_cycles=(5, 5))
+
+
+def test_selection_takes_the_least_variable_candidates():
+    from jaxgait.spinal.build import select
+    from jaxgait.spinal.record import SpinalError
+
+    an = _analysis(lambda n, k: 0.5 - 0.03 * k)  # later IN in the table: less variable
+    muscle = [i.name for i in ins.IN_SEN if i.muscle_feedback]
+    got = select(an, 5)
+    assert got == sorted(muscle, key=lambda n: an.factor(n, "s"))[:5]
+    assert all(n in muscle for n in got)
+    assert "VAS<-KNEE OPF ST" not in select(an, 13, candidates="replaceable")
+    assert len(select(an, 13, candidates="replaceable")) == 13  # the thesis's 13 per leg
+    assert all(an.factor(n, "s") < 0.2 for n in select(an, None, s_max=0.2))
+    with pytest.raises(SpinalError, match="n_replace"):
+        select(an, 10)
+    with pytest.raises(SpinalError, match="candidates"):
+        select(an, 2, candidates="all")
+
+
+@pytest.mark.parametrize("kind", ["fbl_net", "fblminus", "3fbl", "3fbl_prime"])
+def test_build_network_kinds_and_groups(kind):
+    from jaxgait.spinal.build import build_network
+
+    an = _analysis(lambda n, k: 0.01)
+    rep = ["GLU<-GLU MFF SW", "HF<-HF MLF SW", "SOL<-SOL MFF ST", "GAS<-GAS MFF ST"]
+    net = build_network(kind, an, rep, f"t_{kind}", omega=None)
+    hip, other = rep[:2], rep[2:]
+    g = dict(zip(ins.IN_NAMES, net.groups, strict=True))
+    kd = dict(zip(ins.IN_NAMES, net.kinds, strict=True))
+    assert all(g[n] == "sen" and kd[n] == "sen" for n in ins.IN_NAMES if n not in rep)
+    assert all(g[n] == "bas" for n in other)
+    assert all(g[n] == ("bas" if kind == "fblminus" else "cpg") for n in hip)
+    want = {
+        "fbl_net": ("sen", "sen"),
+        "fblminus": ("bas", "bas"),
+        "3fbl": ("cpg", "bas"),
+        "3fbl_prime": ("cpg", "sen"),
+    }[kind]
+    assert all(kd[n] == want[0] for n in hip) and all(kd[n] == want[1] for n in other)
+    k = ins.index("SOL<-SOL MFF ST")
+    assert net.bas_level[k] == pytest.approx(0.2 * k)  # mean over the active phase
+    assert net.omega == pytest.approx(0.8)  # the gait's stride frequency (1 / 1.25 s)
+    assert build_network(kind, an, rep, "t_default").omega == 0.85  # eq. 6.3
+    assert net.theta0 == pytest.approx((1 - 0.8 * 0.2, 1 - 0.8 * 0.7))
+    cmds = [c.name for c in spinal_controller(net).commands]
+    assert cmds[:2] == ["A_INSEN", "O_INSEN"]
+    assert ("omega" in cmds) == (kind in ("3fbl", "3fbl_prime"))
+    assert ("A_INCPG" in cmds) == (kind != "fblminus")
+
+
+def test_spinal_cli_errors_are_clear(capsys):
+    from jaxgait.spinal.cli import main
+
+    assert main(["variability", "no_such_preset"]) == 2
+    assert "no_such_preset" in capsys.readouterr().err
+    assert main(["build", "fbl_walk", "--kinds", "fbl,nope"]) == 2
+    assert "--kinds" in capsys.readouterr().err

@@ -34,6 +34,10 @@ from jaxgait.control.spinal import NETWORK_KINDS, Network, network_to_dict
 from jaxgait.spinal.record import Analysis, SpinalError
 
 CANDIDATES = ("muscle", "replaceable")
+#: Default CPG clock frequency [cycles/s] (thesis eq. 6.3).  A clock slower than the gait
+#: restarts at each touchdown (thesis 6.3.2, case 1); ``omega=None`` takes the gait's own
+#: stride frequency instead.
+OMEGA = 0.85
 #: The thesis's count of replaced IN_SEN per leg (7.1.1.1: "5 IN_SEN removed from the
 #: initial 13").
 N_REPLACE = 5
@@ -68,6 +72,7 @@ def select_walking(
     candidates: str = "muscle",
     kinds: tuple[str, ...] = ("fblminus", "3fbl"),
     check_s: float = 20.0,
+    omega: float | None = OMEGA,
     log=print,
 ) -> tuple[list[str], list[dict]]:
     """Greedy selection with a walking check: go through the candidates least variable first
@@ -86,7 +91,7 @@ def select_walking(
         res = {"name": nm, "s": an.factor(nm, "s")}
         ok = True
         for kind in kinds:
-            net = build_network(kind, an, trial, f"_check_{kind}_{len(tried)}")
+            net = build_network(kind, an, trial, f"_check_{kind}_{len(tried)}", omega=omega)
             doc = model_preset(net, kind, vec, source, trial, an, {})
             try:
                 rep = evaluate.run(doc, duration=check_s).report
@@ -119,9 +124,12 @@ def build_network(
     bas_gated: bool = True,
     tau_in: float = 0.0,
     tau_mn: float = 0.0,
+    omega: float | None = OMEGA,
+    ff_after: int = 3,
     description: str = "",
 ) -> Network:
-    """The :class:`~jaxgait.control.spinal.Network` of ``kind`` (:data:`NETWORK_KINDS`)."""
+    """The :class:`~jaxgait.control.spinal.Network` of ``kind`` (:data:`NETWORK_KINDS`);
+    ``omega`` [cycles/s] is the clock's default (None: the gait's stride frequency)."""
     if kind not in NETWORK_KINDS:
         raise SpinalError(f"kind must be one of {NETWORK_KINDS}, got {kind!r}")
     unknown = sorted(set(replaced) - set(IN_NAMES))
@@ -144,7 +152,7 @@ def build_network(
             kinds[k] = "bas"
         elif kind in ("3fbl", "3fbl_prime") and hip:
             kinds[k] = "cpg"
-    omega = 1.0 / an.stride_s
+    omega = 1.0 / an.stride_s if omega is None else float(omega)
     has_cpg = "cpg" in kinds
     return Network(
         name=name,
@@ -159,6 +167,7 @@ def build_network(
         tau_in=tau_in,
         tau_mn=tau_mn,
         bas_gated=bas_gated,
+        ff_after=ff_after,
         description=description,
     )
 
@@ -174,6 +183,7 @@ def model_preset(
         source=source,
         selection={"replaced": list(replaced), **settings},
         stride_s=an.stride_s,
+        stride_frequency=1.0 / an.stride_s,
         variability=an.table(),
     )
     return {

@@ -27,7 +27,14 @@ import numpy as np
 from jaxgait.control.spinal import NETWORK_KINDS
 from jaxgait.core.jsonio import json_safe
 from jaxgait.presets import PresetError, load_preset, resolve_preset
-from jaxgait.spinal.build import N_REPLACE, build_network, model_preset, select, select_walking
+from jaxgait.spinal.build import (
+    N_REPLACE,
+    OMEGA,
+    build_network,
+    model_preset,
+    select,
+    select_walking,
+)
 from jaxgait.spinal.record import SpinalError, analyse, record
 
 FILE_NAMES = {
@@ -95,6 +102,20 @@ def cmd_patterns(a) -> dict:
     return res
 
 
+def _omega(text: str) -> float | None:
+    if text == "stride":
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        raise SpinalError(
+            f"--omega must be a frequency [cycles/s] or 'stride', got {text!r}"
+        ) from None
+    if not v > 0:
+        raise SpinalError(f"--omega must be positive, got {v}")
+    return v
+
+
 def cmd_build(a) -> dict:
     kinds = [k.strip() for k in a.kinds.split(",") if k.strip()]
     bad = sorted(set(kinds) - set(NETWORK_KINDS))
@@ -102,11 +123,22 @@ def cmd_build(a) -> dict:
         raise SpinalError(f"--kinds: unknown {bad}; valid: {', '.join(NETWORK_KINDS)}")
     rec, an = _analysis(a.preset, a.duration, a.skip)
     source = str(a.preset)
-    settings = {"rule": a.rule, "n_replace": a.n_replace, "candidates": a.candidates}
+    settings = {
+        "rule": a.rule,
+        "n_replace": a.n_replace,
+        "candidates": a.candidates,
+        "omega": a.omega,
+    }
     if a.rule == "walk":
         print(f"greedy selection with a {a.check_s:g} s walking check (least variable first):")
         replaced, tried = select_walking(
-            an, rec.vec, source, a.n_replace, a.candidates, check_s=a.check_s
+            an,
+            rec.vec,
+            source,
+            a.n_replace,
+            a.candidates,
+            check_s=a.check_s,
+            omega=_omega(a.omega),
         )
         settings.update(check_s=a.check_s, tried=tried)
     else:
@@ -130,9 +162,10 @@ def cmd_build(a) -> dict:
             bas_gated=not a.bas_ungated,
             tau_in=a.tau_in,
             tau_mn=a.tau_mn,
+            omega=_omega(a.omega),
+            ff_after=a.ff_after,
             description=desc,
         )
-        net = type(net)(**{**net.__dict__, "ff_after": a.ff_after})
         doc = model_preset(net, kind, rec.vec, source, replaced, an, settings)
         path = out / f"{name}.json"
         path.write_text(json.dumps(json_safe(doc), indent=1, allow_nan=False) + "\n")
@@ -158,7 +191,7 @@ def cmd_compare(a) -> dict:
             "corr_hip",
             "corr_knee",
             "corr_ankle",
-            "energy_per_m",
+            "energy_J_per_m",
         )
         res[_label(preset)] = {k: r.report.get(k) for k in keys}
         print(_label(preset), json.dumps(json_safe(res[_label(preset)])))
@@ -234,6 +267,11 @@ def _parser() -> argparse.ArgumentParser:
     q.add_argument("--tau-in", type=float, default=0.0, help="SEN -> IN link [s] (default 0)")
     q.add_argument("--tau-mn", type=float, default=0.0, help="IN -> MN link [s] (default 0)")
     q.add_argument("--ff-after", type=int, default=3, help="feedforward from this right touchdown")
+    q.add_argument(
+        "--omega",
+        default=str(OMEGA),
+        help=f"CPG clock frequency [cycles/s] (default {OMEGA}, eq. 6.3) or 'stride' (the gait's)",
+    )
     q.add_argument("--out-dir", default="runs/spinal/models")
     q = sub.add_parser("compare", help="Fig. 7.2: models on flat ground vs Winter")
     q.add_argument("presets", nargs="+")

@@ -191,7 +191,7 @@ class PopulationEvaluator:
         from jaxgait import sim
 
         self.exp = exp
-        self.model = get_model(exp.model)
+        self.model = get_model(exp.model, exp.init)
         self.mesh = population_mesh(devices)
         self.n_devices = self.mesh.devices.size
         self.sim_cfg = sim.SimConfig(duration=exp.duration)

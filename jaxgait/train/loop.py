@@ -42,7 +42,7 @@ class _Run:
 
     def __init__(self, exp: Experiment, out: Path, evaluator: PopulationEvaluator, say, label=""):
         self.exp, self.out, self.say, self.label = exp, out, say, label
-        self.table = get_model(exp.model).table
+        self.table = get_model(exp.model, exp.init).table
         self.doc = config_document(exp)
         self.strategy = exp.strategy()
         self.objective = evaluator.objective

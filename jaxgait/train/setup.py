@@ -49,9 +49,20 @@ def config_document(exp: Experiment) -> dict:
 # ------------------------------------------------------------------------------- model / init
 
 
-def get_model(name: str):
+def get_model(name: str, init: str | None = None):
     """The planar simulation model ``name`` from the registry (cached there, so compiled
-    rollouts are shared)."""
+    rollouts are shared).  A spinal-network model is found by its name when a shipped
+    preset defines it, or registered by loading ``init`` (a network preset file)."""
+    if name not in models.model_names("planar") and init not in (None, "table"):
+        try:
+            load_preset(init)
+        except PresetError:
+            pass
+    if name not in models.model_names("planar"):
+        try:
+            models.get_spec(name)
+        except KeyError:
+            pass
     if name not in models.model_names("planar"):
         raise TrainError(
             f"model {name!r} cannot be trained here: training runs the planar models "
