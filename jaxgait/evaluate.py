@@ -193,6 +193,7 @@ def run(
     duration: float = 20.0,
     seed: int = 0,
     model: str | None = None,
+    v0: float | None = None,
 ) -> EvalRun:
     """Simulate an FBL-family preset once and measure it.
 
@@ -202,6 +203,8 @@ def run(
       duration: maximal simulated time [s] (the run stops earlier on a fall).
       seed: environment PRNG seed (same seed, same terrain and pushes).
       model: model name; default the preset's ``model`` (must agree if given).
+      v0: initial forward speed [m/s]; default the preset's ``v0`` entry (written by
+        ``train`` for its best), else :attr:`jaxgait.sim.SimConfig.v0` (1.3).
 
     Returns:
       An :class:`EvalRun` (report, measures, trace, events, summary, final state...).
@@ -227,7 +230,11 @@ def run(
             f"preset {label} holds parameter table {table!r} ({vec.size} values); model "
             f"{name!r} needs table {mdl.table.name!r} ({mdl.table.size} values)"
         )
-    cfg = sim.SimConfig(duration=float(duration))
+    if v0 is None:
+        v0 = doc.get("v0", sim.SimConfig.v0)
+    if isinstance(v0, bool) or not isinstance(v0, (int, float)) or not math.isfinite(v0):
+        raise EvaluateError(f"initial speed v0 must be a finite number [m/s], got {v0!r}")
+    cfg = sim.SimConfig(duration=float(duration), v0=float(v0))
     environment = envs.make_env(env, jax.random.PRNGKey(int(seed)))
     params = mdl.table.as_jnp(vec)
     trace, events, summary, final = _jit_rollout(name, cfg)(params, environment)
@@ -321,6 +328,12 @@ def _parser() -> argparse.ArgumentParser:
         type=float,
         default=20.0,
         help="maximal simulated time in seconds (default 20)",
+    )
+    p.add_argument(
+        "--v0",
+        type=float,
+        default=None,
+        help="initial forward speed [m/s] (default: the preset's v0 entry, else 1.3)",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.add_argument(
@@ -463,7 +476,9 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
             rep = _evaluate_taga(doc, label, file, a.env, a.duration, a.env_seed)
             result = None
         else:
-            result = run(a.preset, env=a.env, duration=a.duration, seed=a.env_seed, model=name)
+            result = run(
+                a.preset, env=a.env, duration=a.duration, seed=a.env_seed, model=name, v0=a.v0
+            )
             rep = result.report
     except ValueError as e:  # PresetError, EvaluateError, invalid environment values
         return err(str(e))

@@ -295,3 +295,13 @@ def test_spinal_cli_errors_are_clear(capsys):
     assert "no_such_preset" in capsys.readouterr().err
     assert main(["build", "fbl_walk", "--kinds", "fbl,nope"]) == 2
     assert "--kinds" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["fblminus_walk", "3fbl_walk", "3fbl_prime_walk"])
+def test_shipped_spinal_models_walk(name):
+    from jaxgait import evaluate
+
+    rep = evaluate.run(name, duration=20.0).report
+    assert not rep["fell"] and rep["distance_m"] > 20.0
+    assert rep["model"] == name and models.get_spec(name).table.name == "fbl"

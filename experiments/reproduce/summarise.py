@@ -49,7 +49,8 @@ def perturbation_survival(folder: Path, n: int = 16, rel: float = 1e-6, duration
     vec = jnp.asarray([doc["params"][k] for k in model.table.names], jnp.float32)
     pert = perturbed_copies(vec, jax.random.PRNGKey(1), n, rel)
     env = envs.make_env_batch("flat", jax.random.split(jax.random.PRNGKey(0), n))
-    roll = sim.make_rollout(model, sim.SimConfig(duration=duration), batched=True)
+    v0 = float(doc.get("v0", sim.SimConfig.v0))
+    roll = sim.make_rollout(model, sim.SimConfig(duration=duration, v0=v0), batched=True)
     summ = roll(pert, env)[2]
     return float(1.0 - jnp.mean(summ.fell.astype(jnp.float32)))
 
