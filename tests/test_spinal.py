@@ -305,3 +305,17 @@ def test_shipped_spinal_models_walk(name):
     rep = evaluate.run(name, duration=20.0).report
     assert not rep["fell"] and rep["distance_m"] > 20.0
     assert rep["model"] == name and models.get_spec(name).table.name == "fbl"
+
+
+@pytest.mark.slow
+def test_train_accepts_a_network_model(tmp_path):
+    from jaxgait.train import cli
+
+    out = tmp_path / "run"
+    args = ["quickstart", "--set", 'model="3fbl_walk"', "--set", 'init="3fbl_walk"']
+    args += ["--iterations", "1", "--particles", "2", "--duration", "1", "--out", str(out)]
+    assert cli.main(args + ["--no-plots"]) == 0
+    doc = json.loads((out / "best.json").read_text())
+    assert doc["model"] == "3fbl_walk" and doc["network"]["kinds"]["GLU<-GLU MFF SW"] == "cpg"
+    name, vec, _ = presets.load_preset(out)
+    assert name == "3fbl_walk" and vec.shape == (fbl.FBL.size,)

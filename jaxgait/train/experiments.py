@@ -170,7 +170,7 @@ class Experiment:
             raise ExperimentError(f"invalid name={self.name!r}: must be a non-empty string")
         if not isinstance(self.description, str):
             raise ExperimentError("description must be a string")
-        if self.model not in models.model_names("planar"):
+        if not _known_model(self.model, self.init):
             raise ExperimentError(
                 f"invalid model={self.model!r}; valid models: "
                 f"{', '.join(models.model_names('planar'))}"
@@ -348,6 +348,27 @@ _FBLPLUS = {"model": "fblplus", "init": "fblplus_walk"}
 _RUNNING = {"targets": (("v_desired", 2.5),), "duration": 30.0, "v0": 2.5}
 _ROBUST_RUN = {"stages": _ROBUST, "d_lim": 120.0, "duration": 120.0, "worst_of_k": 5}
 _CMAES = {"optimiser": "cmaes", "optimiser_options": (("sigma_init", 0.1),)}
+
+
+def _known_model(name, init) -> bool:
+    """A registered planar model, or a spinal-network model a preset defines: a shipped
+    preset of that name, or the ``init`` preset file (loading it registers the model)."""
+    if not isinstance(name, str):
+        return False
+    if name in models.model_names("planar"):
+        return True
+    from jaxgait.presets import PresetError, load_preset
+
+    if isinstance(init, str) and init != "table":
+        try:
+            load_preset(init)
+        except PresetError:
+            pass
+    try:
+        models.get_spec(name)
+    except KeyError:
+        return False
+    return name in models.model_names("planar")
 
 
 def _e(**kw) -> Experiment:
