@@ -9,6 +9,8 @@ Subcommands (each prints a table or JSON line, and writes its JSON and figures t
           [--tau-in S] [--tau-mn S] [--ff-after N] [--out-dir DIR]  # the model presets
     compare PRESET [PRESET ...] [--duration 60] [--out DIR]          # Fig. 7.2
     robust PRESET [PRESET ...] [--seeds 5] [--out DIR]               # Fig. 7.4
+    search PRESET --x NAME:LO:HI:N --y NAME:LO:HI:N [--fixed NAME=V] [--hold 10]
+          [--measure 4] [--out DIR]                                  # Fig. 7.6-7.10
 
 A built model preset is named ``<prefix><kind>_walk`` (``fblminus_walk``, ``3fbl_walk``,
 ``3fbl_prime_walk``, ``fblnet_walk`` with an empty prefix) and holds the FBL parameters of
@@ -231,6 +233,49 @@ def cmd_robust(a) -> dict:
     return res
 
 
+def _grid_arg(text: str) -> tuple[str, tuple[float, ...]]:
+    """NAME:LO:HI:N (N evenly spaced values) or NAME=v1,v2,..."""
+    try:
+        if "=" in text:
+            name, vals = text.split("=", 1)
+            return name, tuple(float(v) for v in vals.split(","))
+        name, lo, hi, n = text.split(":")
+        return name, tuple(float(v) for v in np.linspace(float(lo), float(hi), int(n)))
+    except ValueError:
+        raise SpinalError(f"a grid axis is NAME:LO:HI:N or NAME=v1,v2,..., got {text!r}") from None
+
+
+def cmd_search(a) -> dict:
+    from jaxgait.spinal.figures import plot_search
+    from jaxgait.spinal.search import Search, fit_speed_law, run_search
+
+    (xn, xv), (yn, yv) = _grid_arg(a.x), _grid_arg(a.y)
+    fixed = {}
+    for item in a.fixed:
+        k, _, v = item.partition("=")
+        try:
+            fixed[k] = float(v)
+        except ValueError:
+            raise SpinalError(f"--fixed takes NAME=VALUE, got {item!r}") from None
+    s = Search(xn, xv, yn, yv, fixed, a.hold, a.measure)
+    res = run_search(a.preset, s)
+    sp = res["grid"]["speed_mps"]
+    walked = int(np.isfinite(sp).sum())
+    lo, hi = (np.nanmin(sp), np.nanmax(sp)) if walked else (np.nan, np.nan)
+    print(f"{res['model']}: {walked}/{sp.size} settings walked; speed {lo:.2f}-{hi:.2f} m/s")
+    if walked >= 3:
+        res["speed_law"] = fit_speed_law(xv, yv, sp)
+        law = res["speed_law"]
+        print(
+            f"speed law S = {law['a1']:.3f} {xn} + {law['a2']:.3f} {yn} + {law['a3']:.3f} "
+            f"(RMS {law['rms']:.3f} m/s over {law['n']} settings)"
+        )
+    out = Path(a.out)
+    res["figure"] = str(plot_search(out / f"search_{xn}_{yn}.png", res))
+    res["json"] = str(_write_json(out, f"search_{xn}_{yn}.json", res))
+    return res
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m jaxgait.spinal", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -282,6 +327,16 @@ def _parser() -> argparse.ArgumentParser:
     common(q)
     q.add_argument("--seeds", type=int, default=5)
     q.add_argument("--seed", type=int, default=0)
+    q = sub.add_parser("search", help="Fig. 7.6-7.10: a grid of two commands during walking")
+    q.add_argument("preset")
+    q.add_argument(
+        "--x", required=True, help="NAME:LO:HI:N or NAME=v1,v2,... (changed in a column)"
+    )
+    q.add_argument("--y", required=True, help="NAME:LO:HI:N or NAME=v1,v2,... (one rollout each)")
+    q.add_argument("--fixed", action="append", default=[], metavar="NAME=VALUE")
+    q.add_argument("--hold", type=float, default=10.0, help="seconds per setting (default 10)")
+    q.add_argument("--measure", type=float, default=4.0, help="measured last seconds (default 4)")
+    q.add_argument("--out", default="runs/spinal")
     return p
 
 
@@ -291,6 +346,7 @@ COMMANDS = {
     "build": cmd_build,
     "compare": cmd_compare,
     "robust": cmd_robust,
+    "search": cmd_search,
 }
 
 
@@ -317,7 +373,7 @@ def main(argv=None) -> int:
                     **{
                         k: v
                         for k, v in res.items()
-                        if k in ("json", "figure", "presets", "replaced")
+                        if k in ("json", "figure", "presets", "replaced", "speed_law")
                     },
                 }
             )

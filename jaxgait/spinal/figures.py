@@ -156,3 +156,27 @@ def plot_robustness(path, rows: dict[str, dict]) -> Path:
         ax.grid(alpha=0.3, axis="y")
     fig.suptitle("Robustness of the models, default control vector (thesis Fig. 7.4)", fontsize=10)
     return _save(fig, path)
+
+
+def plot_search(path, res: dict, keys=None) -> Path:
+    """Fig. 7.6-7.10: maps of gait measures over a systematic search (blank where it fell)."""
+    keys = keys or ("speed_mps", "energy_J_per_m", "double_stance_s", "cycle_length_s")
+    fig = Figure(figsize=(10, 8), layout="constrained")
+    axes = fig.subplots(2, 2).ravel()
+    xv, yv = np.asarray(res["x_values"]), np.asarray(res["y_values"])
+    for ax, k in zip(axes, keys, strict=False):
+        z = np.ma.masked_invalid(np.asarray(res["grid"][k], float))
+        im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
+        ax.set_xticks(range(xv.size), [f"{v:.3g}" for v in xv], fontsize=7)
+        ax.set_yticks(range(yv.size), [f"{v:.3g}" for v in yv], fontsize=7)
+        ax.set_xlabel(res["x"])
+        ax.set_ylabel(res["y"])
+        ax.set_title(k, fontsize=9)
+        fig.colorbar(im, ax=ax)
+    fixed = ", ".join(f"{k} = {v:g}" for k, v in res.get("fixed", {}).items()) or "defaults"
+    fig.suptitle(
+        f"{res['model']}: systematic search, C changed every {res['hold_s']:g} s, measured over "
+        f"the last {res['measure_s']:g} s; others {fixed}; blank = fell",
+        fontsize=9,
+    )
+    return _save(fig, path)

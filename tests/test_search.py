@@ -1,0 +1,93 @@
+"""Systematic searches of the control vector (thesis 7.3.2-7.3.3): the grid's schedules, the
+per-setting measuring windows and the speed-law fit (eq. 7.1)."""
+
+import numpy as np
+import pytest
+
+from jaxgait import models
+from jaxgait.sim.trace import Events, Trace
+from jaxgait.spinal.record import SpinalError
+from jaxgait.spinal.search import (
+    Search,
+    column_schedules,
+    fit_speed_law,
+    window_measures,
+    windows,
+)
+
+
+def test_windows_are_the_last_seconds_of_each_setting():
+    s = Search("O_INBAS", (-0.1, 0.0, 0.1), "omega", (0.8,), hold_s=10.0, measure_s=4.0)
+    assert windows(s) == [(6.0, 10.0), (16.0, 20.0), (26.0, 30.0)]
+    with pytest.raises(SpinalError, match="measure_s"):
+        Search("a", (1.0,), "b", (1.0,), hold_s=2.0, measure_s=3.0)
+    with pytest.raises(SpinalError, match="differ"):
+        Search("a", (1.0,), "a", (1.0,))
+
+
+def test_column_schedules_step_through_x_per_lane():
+    cmds = models.get_model("fbl_net").controller.commands  # A_INSEN, O_INSEN
+    s = Search("A_INSEN", (0.9, 1.0, 1.1), "O_INSEN", (-0.01, 0.02), hold_s=5.0)
+    b = column_schedules(cmds, s)
+    assert b.values.shape == (2, 3, 2) and b.t.shape == (2, 3)
+    lane1 = type(b)(t=b.t[1], values=b.values[1], interp=b.interp)
+    np.testing.assert_allclose(np.asarray(lane1.at(7.0)), [1.0, 0.02], rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(lane1.at(4.999)), [0.9, 0.02], rtol=1e-6)
+    with pytest.raises(SpinalError, match="not one of this model's"):
+        column_schedules(cmds, Search("omega", (1.0,), "O_INSEN", (0.0,)))
+
+
+def _synthetic(speed=(1.0, 1.5), fall_at=None):
+    dt = 0.01
+    t = np.arange(1, 2001) * dt  # 20 s, two settings of 10 s
+    v = np.where(t <= 10, speed[0], speed[1])
+    x = np.cumsum(v * dt)
+    alive = np.ones_like(t, bool) if fall_at is None else t < fall_at
+    n = t.size
+    stance = np.stack([np.sin(2 * np.pi * t) > -0.3, np.sin(2 * np.pi * t + np.pi) > -0.3], 1)
+    trace = Trace(
+        t=t,
+        qpos=np.zeros((n, 9)),
+        com=np.stack([x, np.ones(n)], 1),
+        com_vel=np.zeros((n, 2)),
+        grf=np.zeros((n, 2, 2)),
+        stance=stance,
+        act=np.zeros((n, 2, 7)),
+        stim=np.zeros((n, 2, 7)),
+        energy=300.0 * x,
+        alive=alive,
+    )
+    td = np.arange(0.25, 20, 0.5)  # alternating legs, right leg every 1 s
+    events = Events(
+        t=td,
+        leg=np.arange(td.size) % 2,
+        x_td=np.interp(td, t, x) + 0.3,
+        x_other=np.interp(td, t, x) - 0.3 + 0.01 * (np.arange(td.size) % 3),
+        n=np.asarray(td.size),
+    )
+    return trace, events
+
+
+def test_window_measures_on_a_synthetic_walk():
+    trace, events = _synthetic()
+    m = window_measures(trace, events, [(6.0, 10.0), (16.0, 20.0)])
+    np.testing.assert_allclose(m["speed_mps"], [1.0, 1.5], rtol=1e-2)
+    np.testing.assert_allclose(m["energy_J_per_m"], [300.0, 300.0], rtol=1e-6)
+    np.testing.assert_allclose(m["cycle_length_s"], [1.0, 1.0], rtol=1e-9)
+    frac = np.mean(np.abs(np.sin(2 * np.pi * np.linspace(0, 1, 10001))) < 0.3)  # both down
+    np.testing.assert_allclose(m["double_stance_fraction"], [frac, frac], atol=0.02)
+    assert np.all(m["step_length_var_m2"] > 0)
+    fallen = window_measures(*_synthetic(fall_at=15.0), [(6.0, 10.0), (16.0, 20.0)])
+    assert np.isfinite(fallen["speed_mps"][0]) and np.isnan(fallen["speed_mps"][1])
+
+
+def test_speed_law_recovers_known_coefficients():
+    xv, yv = np.linspace(-0.1, 0.1, 7), np.linspace(0.7, 1.2, 6)
+    X, Y = np.meshgrid(xv, yv)
+    S = 4.40 * X + 0.57 * Y + 0.63  # thesis eq. 7.1
+    S[0, :3] = np.nan  # fallen settings are left out
+    law = fit_speed_law(xv, yv, S)
+    assert (law["a1"], law["a2"], law["a3"]) == pytest.approx((4.40, 0.57, 0.63), abs=1e-9)
+    assert law["n"] == 39 and law["rms"] < 1e-9
+    with pytest.raises(SpinalError, match="at least 3"):
+        fit_speed_law(xv[:1], yv[:2], np.array([[1.0], [np.nan]]))
