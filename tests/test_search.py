@@ -18,7 +18,9 @@ from jaxgait.spinal.search import (
 
 def test_windows_are_the_last_seconds_of_each_setting():
     s = Search("O_INBAS", (-0.1, 0.0, 0.1), "omega", (0.8,), hold_s=10.0, measure_s=4.0)
-    assert windows(s) == [(6.0, 10.0), (16.0, 20.0), (26.0, 30.0)]
+    assert windows(s) == [(16.0, 20.0), (26.0, 30.0), (36.0, 40.0)]  # after a 10 s warm-up
+    s = Search("O_INBAS", (-0.1, 0.0), "omega", (0.8,), measure_s=4.0, warmup_s=0.0)
+    assert windows(s) == [(6.0, 10.0), (16.0, 20.0)]
     with pytest.raises(SpinalError, match="measure_s"):
         Search("a", (1.0,), "b", (1.0,), hold_s=2.0, measure_s=3.0)
     with pytest.raises(SpinalError, match="differ"):
@@ -27,12 +29,13 @@ def test_windows_are_the_last_seconds_of_each_setting():
 
 def test_column_schedules_step_through_x_per_lane():
     cmds = models.get_model("fbl_net").controller.commands  # A_INSEN, O_INSEN
-    s = Search("A_INSEN", (0.9, 1.0, 1.1), "O_INSEN", (-0.01, 0.02), hold_s=5.0)
+    s = Search("A_INSEN", (0.9, 1.0, 1.1), "O_INSEN", (-0.01, 0.02), hold_s=5.0, warmup_s=2.0)
     b = column_schedules(cmds, s)
-    assert b.values.shape == (2, 3, 2) and b.t.shape == (2, 3)
+    assert b.values.shape == (2, 4, 2) and b.t.shape == (2, 4)
     lane1 = type(b)(t=b.t[1], values=b.values[1], interp=b.interp)
-    np.testing.assert_allclose(np.asarray(lane1.at(7.0)), [1.0, 0.02], rtol=1e-6)
-    np.testing.assert_allclose(np.asarray(lane1.at(4.999)), [0.9, 0.02], rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(lane1.at(1.0)), [1.0, 0.0], rtol=1e-6)  # defaults
+    np.testing.assert_allclose(np.asarray(lane1.at(9.0)), [1.0, 0.02], rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(lane1.at(6.999)), [0.9, 0.02], rtol=1e-6)
     with pytest.raises(SpinalError, match="not one of this model's"):
         column_schedules(cmds, Search("omega", (1.0,), "O_INSEN", (0.0,)))
 
@@ -91,3 +94,18 @@ def test_speed_law_recovers_known_coefficients():
     assert law["n"] == 39 and law["rms"] < 1e-9
     with pytest.raises(SpinalError, match="at least 3"):
         fit_speed_law(xv[:1], yv[:2], np.array([[1.0], [np.nan]]))
+
+
+@pytest.mark.slow
+def test_search_command_runs_at_a_tiny_size(tmp_path, capsys):
+    import json
+
+    from jaxgait.spinal.cli import main
+
+    args = ["search", "fblnet_walk", "--x", "A_INSEN=0.95,1.0", "--y", "O_INSEN=0.0"]
+    args += ["--hold", "1.5", "--measure", "1", "--warmup", "0", "--out", str(tmp_path)]
+    assert main(args) == 0
+    res = json.loads((tmp_path / "search_A_INSEN_O_INSEN.json").read_text())
+    speed = np.asarray(res["grid"]["speed_mps"], float)
+    assert speed.shape == (1, 2) and np.all(np.isfinite(speed)) and np.all(speed > 0.5)
+    assert (tmp_path / "search_A_INSEN_O_INSEN.png").is_file()

@@ -257,7 +257,7 @@ def cmd_search(a) -> dict:
             fixed[k] = float(v)
         except ValueError:
             raise SpinalError(f"--fixed takes NAME=VALUE, got {item!r}") from None
-    s = Search(xn, xv, yn, yv, fixed, a.hold, a.measure)
+    s = Search(xn, xv, yn, yv, fixed, a.hold, a.measure, a.warmup)
     res = run_search(a.preset, s)
     sp = res["grid"]["speed_mps"]
     walked = int(np.isfinite(sp).sum())
@@ -336,6 +336,7 @@ def _parser() -> argparse.ArgumentParser:
     q.add_argument("--fixed", action="append", default=[], metavar="NAME=VALUE")
     q.add_argument("--hold", type=float, default=10.0, help="seconds per setting (default 10)")
     q.add_argument("--measure", type=float, default=4.0, help="measured last seconds (default 4)")
+    q.add_argument("--warmup", type=float, default=10.0, help="seconds at the defaults first")
     q.add_argument("--out", default="runs/spinal")
     return p
 

@@ -4,7 +4,9 @@ A search varies two commands of a network model over a grid (``x`` values by ``y
 the other commands held at their defaults or at ``fixed`` values.  Each column of the grid
 (one y value) is one continuous rollout: C is changed every ``hold_s`` seconds (10 s in the
 thesis) through the x values in increasing order and the gait is measured over the last
-``measure_s`` seconds of each setting (4 s; the first 6 s let it settle).  A fall ends its
+``measure_s`` seconds of each setting (4 s; the first 6 s let it settle).  Each column first
+walks ``warmup_s`` seconds at the default control vector (the feedforward interneurons switch
+on and the start transient dies out before the first setting).  A fall ends its
 column: that setting and the later ones are blank (NaN), as the white cells of the thesis's
 maps.  The columns run as one batch (``vmap`` over their schedules).
 
@@ -51,20 +53,23 @@ class Search:
     fixed: dict = field(default_factory=dict)
     hold_s: float = 10.0
     measure_s: float = 4.0
+    warmup_s: float = 10.0
 
     def __post_init__(self):
         if self.x == self.y:
             raise SpinalError(f"the two searched commands must differ, got {self.x!r} twice")
         if not (0 < self.measure_s <= self.hold_s):
             raise SpinalError(f"need 0 < measure_s <= hold_s, got {self.measure_s}, {self.hold_s}")
+        if self.warmup_s < 0:
+            raise SpinalError(f"warmup_s must be >= 0, got {self.warmup_s}")
         if not self.x_values or not self.y_values:
             raise SpinalError("a search needs at least one value of each command")
 
 
 def windows(search: Search) -> list[tuple[float, float]]:
     """(start, end) [s] of the measuring window of each x setting in a column."""
-    h, m = search.hold_s, search.measure_s
-    return [((j + 1) * h - m, (j + 1) * h) for j in range(len(search.x_values))]
+    h, m, w = search.hold_s, search.measure_s, search.warmup_s
+    return [(w + (j + 1) * h - m, w + (j + 1) * h) for j in range(len(search.x_values))]
 
 
 def column_schedules(commands, search: Search):
@@ -75,8 +80,12 @@ def column_schedules(commands, search: Search):
             raise SpinalError(f"command {n!r} is not one of this model's: {sorted(names)}")
     cols = []
     for yv in search.y_values:
-        knots = [
-            (j * search.hold_s, {**search.fixed, search.y: float(yv), search.x: float(xv)})
+        knots = [(0.0, {})] if search.warmup_s > 0 else []
+        knots += [
+            (
+                search.warmup_s + j * search.hold_s,
+                {**search.fixed, search.y: float(yv), search.x: float(xv)},
+            )
             for j, xv in enumerate(search.x_values)
         ]
         cols.append(schedule(commands, knots))
@@ -131,7 +140,7 @@ def run_search(preset, search: Search, env: str = "flat", seed: int = 0) -> dict
     model = models.get_model(name)
     sched = column_schedules(model.controller.commands, search)
     ny, nx = len(search.y_values), len(search.x_values)
-    duration = nx * search.hold_s
+    duration = search.warmup_s + nx * search.hold_s
     cfg = sim.SimConfig(
         duration=duration,
         v0=float(doc.get("v0", sim.SimConfig.v0)),
@@ -158,6 +167,7 @@ def run_search(preset, search: Search, env: str = "flat", seed: int = 0) -> dict
         "fixed": dict(search.fixed),
         "hold_s": search.hold_s,
         "measure_s": search.measure_s,
+        "warmup_s": search.warmup_s,
         "fell": np.asarray(summary.fell).tolist(),
         "grid": grid,
     }
