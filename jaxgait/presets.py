@@ -37,7 +37,8 @@ import numpy as np
 
 from jaxgait import models
 from jaxgait.control.fblplus import FBLPLUS, lift_fbl
-from jaxgait.control.spinal import NetworkError, network_from_dict, spinal_controller
+from jaxgait.control.network_json import network_from_dict
+from jaxgait.control.spinal import NetworkError, spinal_controller
 from jaxgait.core.params import ParamTable, save_preset
 from jaxgait.core.resources import presets_dir
 

@@ -12,14 +12,8 @@ from jaxgait import models, presets, sim
 from jaxgait.control import fbl
 from jaxgait.control import interneurons as ins
 from jaxgait.control.commands import schedule
-from jaxgait.control.spinal import (
-    FBL_NET,
-    Network,
-    NetworkError,
-    network_from_dict,
-    network_to_dict,
-    spinal_controller,
-)
+from jaxgait.control.network_json import network_from_dict, network_to_dict
+from jaxgait.control.spinal import FBL_NET, Network, NetworkError, spinal_controller
 from jaxgait.spinal.record import record
 from jaxgait.world import envs
 

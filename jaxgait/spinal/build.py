@@ -30,7 +30,8 @@ import numpy as np
 
 from jaxgait.control.fbl import FBL, GLU, HFL
 from jaxgait.control.interneurons import IN_NAMES, IN_SEN, N_IN
-from jaxgait.control.spinal import NETWORK_KINDS, Network, network_to_dict
+from jaxgait.control.network_json import network_to_dict
+from jaxgait.control.spinal import NETWORK_KINDS, Network
 from jaxgait.spinal.record import Analysis, SpinalError
 
 CANDIDATES = ("muscle", "replaceable")

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxgait import models
-from jaxgait.control.spinal import network_to_dict
+from jaxgait.control.network_json import network_to_dict
 from jaxgait.core.jsonio import json_safe
 from jaxgait.train import objective as objective_mod
 from jaxgait.train.evaluator import PopulationEvaluator
