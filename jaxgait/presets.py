@@ -135,20 +135,46 @@ def _register_network(doc: dict, model: str, where: str) -> None:
     ``model`` name; a name already registered with the same network is kept, one with
     another network is replaced (a rebuilt model), a built-in model name is refused."""
     text = json.dumps(doc["network"], sort_keys=True)
-    if _NETWORKS.get(model) == text:
+    if _NETWORKS.get(model) == text + json.dumps(doc.get("autopilot"), sort_keys=True):
         return
     if model in models.model_names() and model not in _NETWORKS:
         raise PresetError(
             f"{where}: a network preset cannot take the name of the built-in model {model!r}"
         )
-    if doc.get("table", "fbl") != "fbl":
-        raise PresetError(f"{where}: a network model drives FBL's table, not {doc['table']!r}")
+    auto = doc.get("autopilot")
+    table = doc.get("table", "fbl")
+    if table != ("auto_speed" if auto is not None else "fbl"):
+        raise PresetError(
+            f"{where}: a network model drives FBL's table (its automatic speed control the "
+            f"'auto_speed' table), not {table!r}"
+        )
     try:
         net = network_from_dict(doc["network"], model, str(doc.get("description", "")), where)
     except NetworkError as e:
         raise PresetError(str(e)) from None
-    models.register(models.planar_spec(spinal_controller(net)), replace=True)
-    _NETWORKS[model] = text
+    ctrl = spinal_controller(net)
+    if auto is not None:
+        ctrl = _autopilot(auto, ctrl, model, where)
+    models.register(models.planar_spec(ctrl), replace=True)
+    _NETWORKS[model] = text + json.dumps(auto, sort_keys=True)
+
+
+def _autopilot(auto, inner, model: str, where: str):
+    """The automatic speed controller of a preset's ``autopilot`` entry around ``inner``."""
+    from jaxgait.control.autopilot import speed_controller
+    from jaxgait.control.fbl import FBL
+
+    if not isinstance(auto, dict) or auto.get("law") != "speed":
+        raise PresetError(f'{where}: \'autopilot\' must be {{"law": "speed", "base_params": ...}}')
+    base = auto.get("base_params")
+    if not isinstance(base, dict) or sorted(base) != sorted(FBL.names):
+        raise PresetError(f"{where}: autopilot.base_params must give all {FBL.size} FBL parameters")
+    vec = FBL.pack({k: _number(where, k, v) for k, v in base.items()})
+    try:
+        FBL.check(vec, where=f"{where} (autopilot.base_params)")
+    except ValueError as e:
+        raise PresetError(str(e)) from None
+    return speed_controller(model, inner, vec)
 
 
 def forget_network(name: str) -> None:

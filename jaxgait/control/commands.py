@@ -35,12 +35,22 @@ class CommandError(ValueError):
 
 @dataclass(frozen=True)
 class Command:
-    """One command input of a controller: name, default value, unit and meaning."""
+    """One command input of a controller: name, default value, unit, meaning and the range a
+    feedback law keeps it in (``lower``, ``upper``; unbounded by default)."""
 
     name: str
     default: float
     unit: str = ""
     doc: str = ""
+    lower: float = -np.inf
+    upper: float = np.inf
+
+
+def bounds(commands: Sequence[Command], dtype=jnp.float32) -> tuple[jax.Array, jax.Array]:
+    """((C,), (C,)) the declared lower and upper bounds of a control vector."""
+    lo = jnp.asarray([c.lower for c in commands], dtype).reshape(len(commands))
+    hi = jnp.asarray([c.upper for c in commands], dtype).reshape(len(commands))
+    return lo, hi
 
 
 def names(commands: Sequence[Command]) -> tuple[str, ...]:

@@ -148,15 +148,22 @@ class Network:
 def control_commands(groups, with_cpg: bool, omega: float) -> tuple[Command, ...]:
     """The control vector of a network (thesis 6.2.2): A/O of each group present, SEN
     first, then CPG, BAS, and omega when the network has IN_CPG (defaults eq. 6.1-6.3:
-    A = 1, O = 0)."""
+    A = 1, O = 0).  Declared ranges, for feedback laws: A in [0, 2], O in [-0.3, 0.3]
+    [stim], omega in [0.3, 2] cycles/s (wider than every setting the thesis searched)."""
     out = []
     for g in GROUPS:
         if g == "sen" or g in groups:
             G = {"sen": "INSEN", "cpg": "INCPG", "bas": "INBAS"}[g]
-            out.append(Command(f"A_{G}", 1.0, "-", f"scales the output of the {g} group's IN"))
-            out.append(Command(f"O_{G}", 0.0, "stim", f"added to the {g} group's IN output"))
+            out.append(
+                Command(f"A_{G}", 1.0, "-", f"scales the output of the {g} group's IN", 0.0, 2.0)
+            )
+            out.append(
+                Command(f"O_{G}", 0.0, "stim", f"added to the {g} group's IN output", -0.3, 0.3)
+            )
     if with_cpg:
-        out.append(Command("omega", float(omega), "cycles/s", "CPG central-clock frequency"))
+        out.append(
+            Command("omega", float(omega), "cycles/s", "CPG central-clock frequency", 0.3, 2.0)
+        )
     return tuple(out)
 
 

@@ -11,6 +11,8 @@ Subcommands (each prints a table or JSON line, and writes its JSON and figures t
     robust PRESET [PRESET ...] [--seeds 5] [--out DIR]               # Fig. 7.4
     search PRESET --x NAME:LO:HI:N --y NAME:LO:HI:N [--fixed NAME=V] [--hold 10]
           [--measure 4] [--out DIR]                                  # Fig. 7.6-7.10
+    auto PRESET --name NAME [--gain NAME=V ...] [--out-dir DIR]      # automatic speed law
+    track PRESET [--profile 1.0,1.5,0.7,1.3] [--segment 20] [--out DIR]
 
 A built model preset is named ``<prefix><kind>_walk`` (``fblminus_walk``, ``3fbl_walk``,
 ``3fbl_prime_walk``, ``fblnet_walk`` with an empty prefix) and holds the FBL parameters of
@@ -276,6 +278,46 @@ def cmd_search(a) -> dict:
     return res
 
 
+def cmd_auto(a) -> dict:
+    from jaxgait.spinal.auto import auto_preset
+
+    gains = {}
+    for item in a.gain:
+        k, _, v = item.partition("=")
+        try:
+            gains[k] = float(v)
+        except ValueError:
+            raise SpinalError(f"--gain takes NAME=VALUE, got {item!r}") from None
+    doc = auto_preset(a.preset, a.name, gains)
+    out = Path(a.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / f"{a.name}.json"
+    path.write_text(json.dumps(json_safe(doc), indent=1, allow_nan=False) + "\n")
+    print(f"wrote {path}")
+    return {"presets": {"auto": str(path)}}
+
+
+def cmd_track(a) -> dict:
+    from jaxgait.spinal.auto import track
+    from jaxgait.spinal.figures import plot_tracking
+
+    try:
+        profile = [float(v) for v in a.profile.split(",")]
+    except ValueError:
+        raise SpinalError(f"--profile takes speeds v1,v2,... [m/s], got {a.profile!r}") from None
+    r = track(a.preset, profile, a.segment, a.settle)
+    for v, e in zip(profile, r["rms"], strict=True):
+        print(f"target {v:.2f} m/s: RMS error after {a.settle:g} s = {e:.3f} m/s")
+    out = Path(a.out)
+    fig = plot_tracking(out / "tracking.png", r)
+    keep = {
+        k: r[k] for k in ("model", "profile", "segment_s", "settle_s", "rms", "fell", "duration_s")
+    }
+    res = {**keep, "figure": str(fig)}
+    res["json"] = str(_write_json(out, "tracking.json", res))
+    return res
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m jaxgait.spinal", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -338,6 +380,17 @@ def _parser() -> argparse.ArgumentParser:
     q.add_argument("--measure", type=float, default=4.0, help="measured last seconds (default 4)")
     q.add_argument("--warmup", type=float, default=10.0, help="seconds at the defaults first")
     q.add_argument("--out", default="runs/spinal")
+    q = sub.add_parser("auto", help="write a network preset with the automatic speed law")
+    q.add_argument("preset")
+    q.add_argument("--name", required=True)
+    q.add_argument("--gain", action="append", default=[], metavar="NAME=VALUE")
+    q.add_argument("--out-dir", default="runs/spinal/models")
+    q = sub.add_parser("track", help="speed tracking of a target profile")
+    q.add_argument("preset")
+    q.add_argument("--profile", default="1.0,1.5,0.7,1.3", help="target speeds [m/s]")
+    q.add_argument("--segment", type=float, default=20.0, help="seconds per target (20)")
+    q.add_argument("--settle", type=float, default=5.0, help="seconds left out of the RMS (5)")
+    q.add_argument("--out", default="runs/spinal/tracking")
     return p
 
 
@@ -348,6 +401,8 @@ COMMANDS = {
     "compare": cmd_compare,
     "robust": cmd_robust,
     "search": cmd_search,
+    "auto": cmd_auto,
+    "track": cmd_track,
 }
 
 

@@ -180,3 +180,22 @@ def plot_search(path, res: dict, keys=None) -> Path:
         fontsize=9,
     )
     return _save(fig, path)
+
+
+def plot_tracking(path, r: dict) -> Path:
+    """Speed (1 s moving average) against the target profile over time."""
+    fig = Figure(figsize=(9, 3.6), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(r["t"], r["target"], color="0.4", lw=1.5, label="target")
+    ax.plot(r["t"], r["speed"], color="tab:red", lw=1.0, label=f"{r['model']} (1 s average)")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("speed [m/s]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    rms = ", ".join("-" if not np.isfinite(e) else f"{e:.3f}" for e in r["rms"])
+    end = f"fell at {r['duration_s']:.1f} s" if r["fell"] else "no fall"
+    ax.set_title(
+        f"speed tracking, RMS error per segment after {r['settle_s']:g} s: {rms} m/s; {end}",
+        fontsize=9,
+    )
+    return _save(fig, path)

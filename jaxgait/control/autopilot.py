@@ -1,0 +1,129 @@
+"""Automatic speed control of a spinal-network model through its control vector.
+
+The thesis steered 3FBL's speed and slope by hand and left an automatic controller as future
+work (thesis 7.3, 8.2).  :func:`speed_controller` closes the loop inside the jitted step: it
+wraps a network controller, takes the target speed v* [m/s] as its command and every step
+
+1. filters the forward centre-of-mass velocity, v' = (v_com - v) / tau_v -> v [m/s];
+2. integrates the error e = v* - v, I' = e, clamped to [-i_max, i_max] [m];
+3. sets the basal offset and the clock frequency
+   O_INBAS = O_sched + k_ff (v* - v_ref) + k_p e + k_i I   [stim],
+   omega   = omega_sched + k_w (v* - v_ref)                 [cycles/s],
+   each clipped to the range the network declares (:func:`jaxgait.control.spinal.control_commands`);
+   the feedforward term inverts the speed law of the systematic searches (thesis eq. 7.1:
+   S = a1 O_INBAS + a2 omega + a3, so k_ff = 1 / a1 with k_w = 0);
+4. runs the network with that control vector (the other commands as scheduled).
+
+The law's gains are its parameter table (:data:`AUTO_SPEED`, what an optimiser searches); the
+network's own FBL parameters are fixed data of the wrapper.  The wrapper's commands are
+``v_target`` followed by the network's, so a schedule can move the target and still offset
+any command of the network.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from jaxgait.control.commands import Command
+from jaxgait.control.interface import Controller, Sensors
+from jaxgait.core.params import ParamSpec, ParamTable
+
+_L = "speed-law gain (automatic control)"
+
+#: Gains of the speed law (see the module docstring).
+AUTO_SPEED = ParamTable(
+    "auto_speed",
+    (
+        ParamSpec("v_ref", 1.3, 0.5, 2.0, "speed of the network at the default C", "m/s"),
+        ParamSpec("k_ff", 0.6, -2.0, 2.0, "feedforward O_INBAS per m/s (1 / a1 of eq. 7.1)"),
+        ParamSpec("k_p", 0.05, 0.0, 1.0, _L + ": O_INBAS per m/s of error", "1/(m/s)"),
+        ParamSpec("k_i", 0.02, 0.0, 1.0, _L + ": O_INBAS per m of integrated error", "1/m"),
+        ParamSpec("k_w", 0.0, -2.0, 2.0, _L + ": omega per m/s of target", "1/m"),
+        ParamSpec("tau_v", 1.0, 0.2, 3.0, "speed filter time constant (about a stride)", "s"),
+        ParamSpec("i_max", 2.0, 0.1, 10.0, "anti-windup bound of the integral", "m"),
+    ),
+)
+
+V_TARGET = Command("v_target", 1.3, "m/s", "target walking speed", 0.2, 3.0)
+
+
+@dataclass(frozen=True, eq=False)
+class AutoSettings:
+    """Static data: the wrapped network controller and its fixed parameters (D,)."""
+
+    inner: Controller
+    inner_params: np.ndarray
+
+
+@struct.dataclass
+class AutoState:
+    """The wrapped controller's state, the filtered speed v [m/s] and the integral I [m]."""
+
+    inner: object
+    v: jax.Array
+    integral: jax.Array
+
+
+def speed_commands(p: dict, v_target, v, integral, sched: dict, commands) -> dict:
+    """The network's command dict from the law (step 3 of the module docstring)."""
+    out = dict(sched)
+    dv = v_target - p["v_ref"]
+    e = v_target - v
+    lim = {c.name: (c.lower, c.upper) for c in commands}
+    if "O_INBAS" in out:
+        o = out["O_INBAS"] + p["k_ff"] * dv + p["k_p"] * e + p["k_i"] * integral
+        out["O_INBAS"] = jnp.clip(o, *lim["O_INBAS"])
+    if "omega" in out:
+        out["omega"] = jnp.clip(out["omega"] + p["k_w"] * dv, *lim["omega"])
+    return out
+
+
+def auto_init(ctrl: Controller, sens: Sensors, dt: float) -> AutoState:
+    inner = ctrl.settings.inner
+    v0 = sens.com_vel[0]
+    return AutoState(inner=inner.init(inner, sens, dt), v=v0, integral=jnp.zeros_like(v0))
+
+
+def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: dict, dt):
+    """One step: the law, then the network (see the module docstring)."""
+    st = ctrl.settings
+    inner = st.inner
+    a = 1.0 - jnp.exp(-dt / p["tau_v"])
+    v = s.v + a * (sens.com_vel[0] - s.v)
+    e = command["v_target"] - v
+    integral = jnp.clip(s.integral + dt * e, -p["i_max"], p["i_max"])
+    sched = {c.name: command[c.name] for c in inner.commands}
+    cmd = speed_commands(p, command["v_target"], v, integral, sched, inner.commands)
+    q = inner.table.unpack(jnp.asarray(st.inner_params, sens.f_norm.dtype))
+    stim, inner_state = inner.step(inner, q, sens, s.inner, cmd, dt)
+    return stim, AutoState(inner=inner_state, v=v, integral=integral)
+
+
+def speed_controller(
+    name: str, inner: Controller, inner_params, description: str = ""
+) -> Controller:
+    """The closed-loop speed controller around the network controller ``inner`` driven by
+    ``inner_params`` (its table's vector)."""
+    vec = np.asarray(inner_params, np.float64)
+    if vec.shape != (inner.table.size,):
+        raise ValueError(
+            f"{name}: inner parameters need {inner.table.size} values, got {vec.shape}"
+        )
+    names = {c.name for c in inner.commands}
+    if "O_INBAS" not in names:
+        raise ValueError(f"{name}: the wrapped model {inner.name!r} has no O_INBAS command")
+    return Controller(
+        name=name,
+        table=AUTO_SPEED,
+        n_muscles=inner.n_muscles,
+        init=auto_init,
+        step=auto_step,
+        commands=(V_TARGET,) + tuple(inner.commands),
+        settings=AutoSettings(inner=inner, inner_params=vec),
+        description=description or f"automatic speed control of {inner.name}",
+    )

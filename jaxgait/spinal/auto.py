@@ -1,0 +1,88 @@
+"""Automatic control presets and the speed-tracking experiment (thesis 7.3, 8.2).
+
+* :func:`auto_preset`: the preset document of a network model with the closed-loop speed
+  law of :mod:`jaxgait.control.autopilot` (``"table": "auto_speed"``, the law's gains as its
+  parameters, the network and its FBL parameters as fixed data);
+* :func:`track`: a target-speed profile (segments of constant v*), one rollout; the speed
+  over time and the RMS error of each segment after ``settle_s``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jaxgait import models, sim
+from jaxgait.control.autopilot import AUTO_SPEED
+from jaxgait.control.commands import schedule
+from jaxgait.presets import load_preset
+from jaxgait.spinal.record import SpinalError
+
+
+def auto_preset(network_preset, name: str, gains: dict | None = None) -> dict:
+    """A speed-controlled version of a network preset (name, path or dict document)."""
+    model, vec, doc = load_preset(network_preset)
+    if "network" not in doc:
+        raise SpinalError(f"{network_preset}: not a network preset (no 'network' entry)")
+    if "autopilot" in doc:
+        raise SpinalError(f"{network_preset}: already has an automatic controller")
+    g = dict(zip(AUTO_SPEED.names, map(float, AUTO_SPEED.init), strict=True))
+    unknown = sorted(set(gains or {}) - set(g))
+    if unknown:
+        raise SpinalError(f"unknown speed-law gains {unknown}; known: {list(g)}")
+    g.update({k: float(v) for k, v in (gains or {}).items()})
+    base = dict(zip(models.get_model(model).table.names, map(float, vec), strict=True))
+    return {
+        "model": name,
+        "table": AUTO_SPEED.name,
+        "description": f"{model} with automatic speed control (target v_target [m/s])",
+        "params": g,
+        "network": doc["network"],
+        "autopilot": {"law": "speed", "base_params": base, "source": str(network_preset)},
+    }
+
+
+def track(preset, profile, segment_s: float = 20.0, settle_s: float = 5.0, env=None) -> dict:
+    """Run ``preset`` (a model with a ``v_target`` command) through the target ``profile``
+    [m/s], ``segment_s`` seconds each; returns time, speed (1 s moving average), target and
+    the per-segment RMS error after ``settle_s`` (NaN after a fall)."""
+    import jax
+
+    from jaxgait.world import envs
+
+    name, vec, doc = load_preset(preset)
+    model = models.get_model(name)
+    if "v_target" not in model.controller.command_names:
+        raise SpinalError(f"{preset}: model {name!r} has no v_target command")
+    knots = [(k * segment_s, {"v_target": float(v)}) for k, v in enumerate(profile)]
+    sched = schedule(model.controller.commands, knots)
+    cfg = sim.SimConfig(duration=segment_s * len(profile), max_events=2048)
+    e = env if env is not None else envs.make_env("flat", jax.random.PRNGKey(0))
+    f = sim.make_rollout(model, cfg, batched=False)
+    tr, _, sm, _ = f(model.table.as_jnp(vec), e, sched)
+    t = np.asarray(tr.t, float)
+    alive = np.asarray(tr.alive, bool)
+    x = np.asarray(tr.com, float)[:, 0]
+    n = max(1, int(round(1.0 / cfg.log_dt)))
+    v = np.full_like(t, np.nan)
+    v[n:] = (x[n:] - x[:-n]) / (t[n:] - t[:-n])
+    v[~alive] = np.nan
+    target = np.asarray([profile[min(int(ti // segment_s), len(profile) - 1)] for ti in t])
+    rms = []
+    for k in range(len(profile)):
+        w = (t >= k * segment_s + settle_s) & (t < (k + 1) * segment_s)
+        ok = w & alive
+        rms.append(
+            float(np.sqrt(np.mean((v[ok] - target[ok]) ** 2))) if ok.sum() == w.sum() else np.nan
+        )
+    return {
+        "model": name,
+        "profile": list(map(float, profile)),
+        "segment_s": segment_s,
+        "settle_s": settle_s,
+        "t": t,
+        "speed": v,
+        "target": target,
+        "rms": rms,
+        "fell": bool(np.asarray(sm.fell)),
+        "duration_s": float(np.asarray(sm.duration)),
+    }
