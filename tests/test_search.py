@@ -41,11 +41,13 @@ def test_column_schedules_step_through_x_per_lane():
 
 
 def _synthetic(speed=(1.0, 1.5), fall_at=None):
+    """A 20 s straight walk logged like a rollout; its last row is "done" (alive False), as
+    at a rollout's time limit."""
     dt = 0.01
     t = np.arange(1, 2001) * dt  # 20 s, two settings of 10 s
     v = np.where(t <= 10, speed[0], speed[1])
     x = np.cumsum(v * dt)
-    alive = np.ones_like(t, bool) if fall_at is None else t < fall_at
+    alive = t < (20.0 if fall_at is None else fall_at)
     n = t.size
     stance = np.stack([np.sin(2 * np.pi * t) > -0.3, np.sin(2 * np.pi * t + np.pi) > -0.3], 1)
     trace = Trace(
@@ -80,7 +82,7 @@ def test_window_measures_on_a_synthetic_walk():
     frac = np.mean(np.abs(np.sin(2 * np.pi * np.linspace(0, 1, 10001))) < 0.3)  # both down
     np.testing.assert_allclose(m["double_stance_fraction"], [frac, frac], atol=0.02)
     assert np.all(m["step_length_var_m2"] > 0)
-    fallen = window_measures(*_synthetic(fall_at=15.0), [(6.0, 10.0), (16.0, 20.0)])
+    fallen = window_measures(*_synthetic(fall_at=15.0), [(6.0, 10.0), (16.0, 20.0)], 15.0)
     assert np.isfinite(fallen["speed_mps"][0]) and np.isnan(fallen["speed_mps"][1])
 
 

@@ -92,11 +92,11 @@ def column_schedules(commands, search: Search):
     return jax.tree.map(lambda *a: jnp.stack(a), *cols)
 
 
-def window_measures(trace, events, windows_s, mass: float | None = None) -> dict[str, np.ndarray]:
-    """Gait measures of one rollout in each window (host arrays; NaN where it was not alive
-    for the whole window).  trace/events: one rollout (no batch axis)."""
+def window_measures(trace, events, windows_s, fell_at: float = np.inf) -> dict[str, np.ndarray]:
+    """Gait measures of one rollout in each window (host arrays; NaN for the windows that end
+    after ``fell_at``, the time of the fall [s]).  trace/events: one rollout (no batch axis).
+    (The trace's ``alive`` flag is not used: the row at the time limit is already "done".)"""
     t = np.asarray(trace.t, float)
-    alive = np.asarray(trace.alive, bool)
     com_x = np.asarray(trace.com, float)[:, 0]
     energy = np.asarray(trace.energy, float)
     stance = np.asarray(trace.stance, bool)
@@ -106,8 +106,8 @@ def window_measures(trace, events, windows_s, mass: float | None = None) -> dict
     step = (np.asarray(events.x_td, float) - np.asarray(events.x_other, float))[:n_ev]
     out = {k: np.full(len(windows_s), np.nan) for k in MEASURES}
     for j, (a, b) in enumerate(windows_s):
-        rows = (t > a + 1e-9) & (t <= b + 1e-9)
-        if not rows.any() or not alive[rows].all() or t[alive].max() < b - 1e-6:
+        rows = (t > a + 1e-6) & (t <= b + 1e-6)
+        if rows.sum() < 2 or fell_at <= b + 1e-6:
             continue
         i0, i1 = np.flatnonzero(rows)[[0, -1]]
         dx = com_x[i1] - com_x[i0]
@@ -151,12 +151,14 @@ def run_search(preset, search: Search, env: str = "flat", seed: int = 0) -> dict
     params = jnp.broadcast_to(model.table.as_jnp(vec), (ny, model.table.size))
     trace, events, summary, _ = _rollout(name, cfg)(params, env_b, sched)
     trace, events = jax.tree.map(np.asarray, trace), jax.tree.map(np.asarray, events)
+    fell = np.asarray(summary.fell, bool)
+    fell_at = np.where(fell, np.asarray(summary.duration, float), np.inf)
     wins = windows(search)
     grid = {k: np.full((ny, nx), np.nan) for k in MEASURES}
     for i in range(ny):
         one_t = jax.tree.map(lambda x, i=i: x[i], trace)
         one_e = jax.tree.map(lambda x, i=i: x[i], events)
-        for k, v in window_measures(one_t, one_e, wins).items():
+        for k, v in window_measures(one_t, one_e, wins, float(fell_at[i])).items():
             grid[k][i] = v
     return {
         "model": name,
@@ -168,7 +170,8 @@ def run_search(preset, search: Search, env: str = "flat", seed: int = 0) -> dict
         "hold_s": search.hold_s,
         "measure_s": search.measure_s,
         "warmup_s": search.warmup_s,
-        "fell": np.asarray(summary.fell).tolist(),
+        "fell": fell.tolist(),
+        "fell_at_s": [float(v) if np.isfinite(v) else None for v in fell_at],
         "grid": grid,
     }
 
