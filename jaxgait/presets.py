@@ -126,16 +126,17 @@ def resolve_preset(name_or_path: str | Path) -> Path:
 
 # --------------------------------------------------------------------------- networks
 
-#: model name -> JSON text of the network it was registered with (by this module)
-_NETWORKS: dict[str, str] = {}
+#: model name -> the preset entries that define it (``network`` and, for an automatically
+#: controlled model, ``autopilot``), for the models registered by this module
+_NETWORKS: dict[str, dict] = {}
 
 
 def _register_network(doc: dict, model: str, where: str) -> None:
     """Register the spinal-network model a preset defines (``"network"`` entry) under its
     ``model`` name; a name already registered with the same network is kept, one with
     another network is replaced (a rebuilt model), a built-in model name is refused."""
-    text = json.dumps(doc["network"], sort_keys=True)
-    if _NETWORKS.get(model) == text + json.dumps(doc.get("autopilot"), sort_keys=True):
+    entries = {k: doc[k] for k in ("network", "autopilot") if k in doc}
+    if _NETWORKS.get(model) == entries:
         return
     if model in models.model_names() and model not in _NETWORKS:
         raise PresetError(
@@ -156,7 +157,7 @@ def _register_network(doc: dict, model: str, where: str) -> None:
     if auto is not None:
         ctrl = _autopilot(auto, ctrl, model, where)
     models.register(models.planar_spec(ctrl), replace=True)
-    _NETWORKS[model] = text + json.dumps(auto, sort_keys=True)
+    _NETWORKS[model] = json.loads(json.dumps(entries))  # a copy the caller cannot change
 
 
 def _autopilot(auto, inner, model: str, where: str):
@@ -175,6 +176,31 @@ def _autopilot(auto, inner, model: str, where: str):
     except ValueError as e:
         raise PresetError(str(e)) from None
     return speed_controller(model, inner, vec)
+
+
+def defining_entries(name: str) -> dict:
+    """The preset entries (``network``, ``autopilot``) that define model ``name``, for a
+    preset that re-creates it (e.g. a training run's ``best.json``); {} for a built-in."""
+    return json.loads(json.dumps(_NETWORKS.get(name, {})))
+
+
+def ensure_model(name: str, init=None) -> bool:
+    """Whether ``name`` is a registered planar model, registering it first when a preset
+    defines it: the ``init`` preset (a name or file that defines ``name``) or a shipped
+    preset of that name."""
+    if name in models.model_names("planar"):
+        return True
+    if isinstance(init, (str, Path)) and init != "table":
+        try:
+            load_preset(init)
+        except PresetError:
+            pass
+    if name not in models.model_names("planar"):
+        try:
+            models.get_spec(name)
+        except KeyError:
+            return False
+    return name in models.model_names("planar")
 
 
 def forget_network(name: str) -> None:

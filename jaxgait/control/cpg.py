@@ -46,10 +46,6 @@ class PeriodicSpline:
 
     coef: jax.Array
 
-    @property
-    def n(self) -> int:
-        return self.coef.shape[-2]
-
     def __call__(self, theta: jax.Array) -> tuple[jax.Array, jax.Array]:
         """(g(theta), dg/dtheta) for phases ``theta`` broadcast against the batch (taken
         modulo 1)."""

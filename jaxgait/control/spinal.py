@@ -92,7 +92,6 @@ class Network:
         from the start; 0 = from t = 0); before it every IN is sensory, as in the thesis's
         own code, which starts on the full reflex and switches after a few cycles.  The
         clocks run (and restart at touchdowns) from the start.
-      commands: the control vector (thesis eq. 6.1-6.3), in order.
       description, provenance: free text / JSON-able data for listings and presets.
     """
 
@@ -109,7 +108,6 @@ class Network:
     tau_mn: float = TAU_MN
     bas_gated: bool = True
     ff_after: int = 3
-    commands: tuple[Command, ...] = ()
     description: str = ""
     provenance: dict = field(default_factory=dict)
 
@@ -309,7 +307,7 @@ def spinal_controller(net: Network, delays: tuple = ReflexSettings.delays) -> Co
     coef = None
     if idx.size:
         coef = cpg.periodic_spline(np.asarray(net.cpg_pattern, float)[:, idx])
-    commands = net.commands or control_commands(set(net.groups), bool(idx.size), net.omega)
+    commands = control_commands(set(net.groups), bool(idx.size), net.omega)
     settings = SpinalSettings(delays=delays, network=net, kind=kind, group=group, coef=coef)
     return Controller(
         name=net.name,

@@ -106,6 +106,18 @@ def cmd_patterns(a) -> dict:
     return res
 
 
+def _name_values(items, flag: str) -> dict[str, float]:
+    """NAME=VALUE arguments of a repeatable flag as a dict."""
+    out = {}
+    for item in items:
+        k, _, v = item.partition("=")
+        try:
+            out[k] = float(v)
+        except ValueError:
+            raise SpinalError(f"{flag} takes NAME=VALUE, got {item!r}") from None
+    return out
+
+
 def _omega(text: str) -> float | None:
     if text == "stride":
         return None
@@ -149,8 +161,6 @@ def cmd_build(a) -> dict:
         replaced = select(an, a.n_replace, a.s_max, a.candidates)
         settings.update(s_max=a.s_max)
     print("replaced:", ", ".join(replaced) or "(none)")
-    out = Path(a.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     written = {}
     for kind in kinds:
         name = f"{a.prefix}{FILE_NAMES[kind]}_walk"
@@ -171,8 +181,7 @@ def cmd_build(a) -> dict:
             description=desc,
         )
         doc = model_preset(net, kind, rec.vec, source, replaced, an, settings)
-        path = out / f"{name}.json"
-        path.write_text(json.dumps(json_safe(doc), indent=1, allow_nan=False) + "\n")
+        path = _write_json(Path(a.out_dir), f"{name}.json", doc)
         written[kind] = str(path)
         print(f"wrote {path}")
     return {"replaced": replaced, "presets": written, "settings": settings}
@@ -252,13 +261,7 @@ def cmd_search(a) -> dict:
     from jaxgait.spinal.search import Search, fit_speed_law, run_search
 
     (xn, xv), (yn, yv) = _grid_arg(a.x), _grid_arg(a.y)
-    fixed = {}
-    for item in a.fixed:
-        k, _, v = item.partition("=")
-        try:
-            fixed[k] = float(v)
-        except ValueError:
-            raise SpinalError(f"--fixed takes NAME=VALUE, got {item!r}") from None
+    fixed = _name_values(a.fixed, "--fixed")
     s = Search(xn, xv, yn, yv, fixed, a.hold, a.measure, a.warmup)
     res = run_search(a.preset, s)
     sp = res["grid"]["speed_mps"]
@@ -281,18 +284,8 @@ def cmd_search(a) -> dict:
 def cmd_auto(a) -> dict:
     from jaxgait.spinal.auto import auto_preset
 
-    gains = {}
-    for item in a.gain:
-        k, _, v = item.partition("=")
-        try:
-            gains[k] = float(v)
-        except ValueError:
-            raise SpinalError(f"--gain takes NAME=VALUE, got {item!r}") from None
-    doc = auto_preset(a.preset, a.name, gains)
-    out = Path(a.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / f"{a.name}.json"
-    path.write_text(json.dumps(json_safe(doc), indent=1, allow_nan=False) + "\n")
+    doc = auto_preset(a.preset, a.name, _name_values(a.gain, "--gain"))
+    path = _write_json(Path(a.out_dir), f"{a.name}.json", doc)
     print(f"wrote {path}")
     return {"presets": {"auto": str(path)}}
 

@@ -68,8 +68,8 @@ def network_model_name(declared: str) -> str:
 
 
 @functools.lru_cache(maxsize=8)
-def _recorder(name: str, cfg: SimConfig):
-    model = models.get_model(name)
+def _recorder(model, cfg: SimConfig):
+    """The jitted recorder of one model object (a re-registered name is a new object)."""
     log_every = round(cfg.log_dt / model.dt)
     n_rows = math.ceil(cfg.duration / cfg.log_dt)
 
@@ -96,7 +96,7 @@ def record(
     cfg = SimConfig(duration=float(duration), log_dt=float(log_dt))
     e = envs.make_env(env, jax.random.PRNGKey(int(seed)))
     model = models.get_model(name)
-    (t, out, gate, stance, alive), dur, fell = _recorder(name, cfg)(model.table.as_jnp(vec), e)
+    (t, out, gate, stance, alive), dur, fell = _recorder(model, cfg)(model.table.as_jnp(vec), e)
     h = lambda x: np.asarray(x)
     return Record(h(t), h(out), h(gate), h(stance), h(alive), name, vec, float(dur), bool(fell))
 

@@ -129,8 +129,9 @@ def window_measures(trace, events, windows_s, fell_at: float = np.inf) -> dict[s
 
 
 @functools.lru_cache(maxsize=4)
-def _rollout(name: str, cfg: sim.SimConfig):
-    return sim.make_rollout(models.get_model(name), cfg, batched=True)
+def _rollout(model, cfg: sim.SimConfig):
+    """The batched rollout of one model object (a re-registered name is a new object)."""
+    return sim.make_rollout(model, cfg, batched=True)
 
 
 def run_search(preset, search: Search, env: str = "flat", seed: int = 0) -> dict:
@@ -149,7 +150,7 @@ def run_search(preset, search: Search, env: str = "flat", seed: int = 0) -> dict
     keys = jax.random.split(jax.random.PRNGKey(int(seed)), ny)
     env_b = envs.make_env_batch(env, keys)
     params = jnp.broadcast_to(model.table.as_jnp(vec), (ny, model.table.size))
-    trace, events, summary, _ = _rollout(name, cfg)(params, env_b, sched)
+    trace, events, summary, _ = _rollout(model, cfg)(params, env_b, sched)
     trace, events = jax.tree.map(np.asarray, trace), jax.tree.map(np.asarray, events)
     fell = np.asarray(summary.fell, bool)
     fell_at = np.where(fell, np.asarray(summary.duration, float), np.inf)

@@ -351,24 +351,10 @@ _CMAES = {"optimiser": "cmaes", "optimiser_options": (("sigma_init", 0.1),)}
 
 
 def _known_model(name, init) -> bool:
-    """A registered planar model, or a spinal-network model a preset defines: a shipped
-    preset of that name, or the ``init`` preset file (loading it registers the model)."""
-    if not isinstance(name, str):
-        return False
-    if name in models.model_names("planar"):
-        return True
-    from jaxgait.presets import PresetError, load_preset
+    """A registered planar model, or one a preset defines (:func:`jaxgait.presets.ensure_model`)."""
+    from jaxgait.presets import ensure_model
 
-    if isinstance(init, str) and init != "table":
-        try:
-            load_preset(init)
-        except PresetError:
-            pass
-    try:
-        models.get_spec(name)
-    except KeyError:
-        return False
-    return name in models.model_names("planar")
+    return isinstance(name, str) and ensure_model(name, init)
 
 
 def _e(**kw) -> Experiment:

@@ -14,9 +14,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait import models
-from jaxgait.control.network_json import network_to_dict
 from jaxgait.core.jsonio import json_safe
+from jaxgait.presets import defining_entries
 from jaxgait.train import objective as objective_mod
 from jaxgait.train.evaluator import PopulationEvaluator
 from jaxgait.train.experiments import (
@@ -80,10 +79,7 @@ def save_best(out: Path, exp: Experiment, table, state: TrainState, objective) -
 
     vec = np.clip(np.asarray(state.best_params, np.float64), table.lower, table.upper)
     text = objective_mod.score_text(objective, state.best_stage, state.best_value)
-    extra = {}
-    net = getattr(models.get_model(exp.model).controller.settings, "network", None)
-    if net is not None and exp.model != "fbl_net":  # a network model: the preset defines it
-        extra["network"] = network_to_dict(net)
+    extra = defining_entries(exp.model)  # a model a preset defines: best.json re-creates it
     p_json, p_txt = out / "best.json", out / "best_params.txt"
     save_preset(
         p_json,

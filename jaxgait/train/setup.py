@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxgait import models
-from jaxgait.presets import PresetError, load_preset
+from jaxgait.presets import PresetError, ensure_model, load_preset
 from jaxgait.train.experiments import (
     CONFIG_FORMAT,
     Experiment,
@@ -53,17 +53,7 @@ def get_model(name: str, init: str | None = None):
     """The planar simulation model ``name`` from the registry (cached there, so compiled
     rollouts are shared).  A spinal-network model is found by its name when a shipped
     preset defines it, or registered by loading ``init`` (a network preset file)."""
-    if name not in models.model_names("planar") and init not in (None, "table"):
-        try:
-            load_preset(init)
-        except PresetError:
-            pass
-    if name not in models.model_names("planar"):
-        try:
-            models.get_spec(name)
-        except KeyError:
-            pass
-    if name not in models.model_names("planar"):
+    if not ensure_model(name, init):
         raise TrainError(
             f"model {name!r} cannot be trained here: training runs the planar models "
             f"({', '.join(models.model_names('planar'))})"
