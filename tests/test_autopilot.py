@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from jaxgait import models, presets, sim
-from jaxgait.control.autopilot import AUTO_SPEED, speed_commands
+from jaxgait.control.autopilot import AUTO_SPEED, grade_at_touchdown, speed_commands
 from jaxgait.control.commands import bounds
 from jaxgait.spinal.auto import auto_preset
 from jaxgait.world import envs
@@ -29,8 +29,9 @@ def _inner_commands():
     v=st.floats(-1.0, 4.0),
     integral=st.floats(-10.0, 10.0),
     o_sched=st.floats(-0.3, 0.3),
+    grade=st.floats(-1.0, 1.0),
 )
-def test_speed_law_stays_in_the_declared_ranges(gains, v_target, v, integral, o_sched):
+def test_speed_law_stays_in_the_declared_ranges(gains, v_target, v, integral, o_sched, grade):
     cmds = _inner_commands()
     lo, hi = AUTO_SPEED.lower, AUTO_SPEED.upper
     p = {
@@ -39,13 +40,36 @@ def test_speed_law_stays_in_the_declared_ranges(gains, v_target, v, integral, o_
     }
     sched = {c.name: jnp.asarray(c.default) for c in cmds}
     sched["O_INBAS"] = jnp.asarray(o_sched)
-    out = speed_commands(p, v_target, v, integral, sched, cmds)
+    out = speed_commands(p, v_target, v, integral, sched, cmds, grade)
     blo, bhi = bounds(cmds)
     vec = jnp.stack([out[c.name] for c in cmds])
     assert bool(jnp.all(vec >= blo)) and bool(jnp.all(vec <= bhi))
-    for c in cmds:  # the law moves only the basal offset and the clock
-        if c.name not in ("O_INBAS", "omega"):
+    for c in cmds:  # the law moves only the offsets of the basal and CPG groups and the clock
+        if c.name not in ("O_INBAS", "O_INCPG", "omega"):
             assert float(out[c.name]) == float(sched[c.name])
+
+
+def test_grade_estimate_from_the_feet_at_touchdown():
+    """Step 3 of the law: heel of the leg touching down against the ball of the other."""
+    g = 0.12  # both contact points on a 12 % ramp
+    xr, xl = 1.0, 0.4  # right heel ahead, left ball behind
+    feet = jnp.array([[xr, g * xr], [xr + 0.2, g * xr + 0.05], [xl - 0.2, 0.3], [xl, g * xl]])
+    td = jnp.array([True, False])
+    assert float(grade_at_touchdown(feet, td, 0.0, 1.0)) == pytest.approx(g, abs=1e-6)
+    # the filter moves a fraction k_g of the way; no touchdown leaves the estimate alone
+    assert float(grade_at_touchdown(feet, td, 0.02, 0.5)) == pytest.approx(0.07, abs=1e-6)
+    assert float(grade_at_touchdown(feet, jnp.array([False, False]), 0.02, 0.5)) == pytest.approx(
+        0.02
+    )
+    # the slope rule adds k_sw g to omega and k_sb g to O_INBAS (no speed error here)
+    cmds = _inner_commands()
+    p = dict(zip(AUTO_SPEED.names, map(float, AUTO_SPEED.init), strict=True))
+    p.update(k_sw=-2.0, k_sb=0.5, k_sc=0.25, k_ff=0.0, k_p=0.0, k_i=0.0)
+    sched = {c.name: jnp.asarray(c.default) for c in cmds}
+    out = speed_commands(p, 1.3, 1.3, 0.0, sched, cmds, g)
+    assert float(out["omega"]) == pytest.approx(float(sched["omega"]) - 2.0 * g, abs=1e-6)
+    assert float(out["O_INBAS"]) == pytest.approx(0.5 * g, abs=1e-6)
+    assert float(out["O_INCPG"]) == pytest.approx(0.25 * g, abs=1e-6)
 
 
 def test_auto_preset_round_trip_and_fresh_state(tmp_path):

@@ -40,6 +40,25 @@ def test_column_schedules_step_through_x_per_lane():
         column_schedules(cmds, Search("omega", (1.0,), "O_INSEN", (0.0,)))
 
 
+def test_a_third_command_repeats_the_grid_for_each_of_its_values():
+    cmds = models.get_model("3fbl_walk").controller.commands
+    names = [c.name for c in cmds]
+    s = Search(
+        "O_INBAS", (-0.01, 0.01), "A_INCPG", (0.8, 1.2, 1.6), hold_s=5.0, warmup_s=0.0,
+        z="omega", z_values=(0.7, 1.1),
+    )  # fmt: skip
+    b = column_schedules(cmds, s)
+    assert b.values.shape[0] == 6  # z outer, y inner
+    iw, ia, io = names.index("omega"), names.index("A_INCPG"), names.index("O_INBAS")
+    for lane, (w, a) in enumerate([(w, a) for w in (0.7, 1.1) for a in (0.8, 1.2, 1.6)]):
+        one = type(b)(t=b.t[lane], values=b.values[lane], interp=b.interp)
+        v = np.asarray(one.at(7.0))
+        assert v[iw] == pytest.approx(w) and v[ia] == pytest.approx(a)
+        assert v[io] == pytest.approx(0.01)
+    with pytest.raises(SpinalError, match="third command"):
+        Search("O_INBAS", (0.0,), "omega", (1.0,), z="omega", z_values=(1.0,))
+
+
 def _synthetic(speed=(1.0, 1.5), fall_at=None):
     """A 20 s straight walk logged like a rollout; its last row is "done" (alive False), as
     at a rollout's time limit."""

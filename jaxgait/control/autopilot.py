@@ -6,13 +6,19 @@ wraps a network controller, takes the target speed v* [m/s] as its command and e
 
 1. filters the forward centre-of-mass velocity, v' = (v_com - v) / tau_v -> v [m/s];
 2. integrates the error e = v* - v, I' = e, clamped to [-i_max, i_max] [m];
-3. sets the basal offset and the clock frequency
-   O_INBAS = O_sched + k_ff (v* - v_ref) + k_p e + k_i I   [stim],
-   omega   = omega_sched + k_w (v* - v_ref)                 [cycles/s],
+3. estimates the ground grade g [-] (rise over run) at every touchdown from the two
+   contact points on the ground, the heel of the foot touching down and the ball of the
+   other (stance) foot: g_td = (z_heel - z_ball) / (x_heel - x_ball), and
+   g <- g + k_g (g_td - g) (a per-step filter of the chord of the terrain under the feet);
+4. sets the basal offsets and the clock frequency (the slope rule: the thesis climbed by
+   lowering omega and raising the basal offsets as the ground steepened, 7.3.1)
+   O_INBAS = O_sched + k_ff (v* - v_ref) + k_p e + k_i I + k_sb g   [stim],
+   O_INCPG = O_sched + k_sc g                                       [stim],
+   omega   = omega_sched + k_w (v* - v_ref) + k_sw g                [cycles/s],
    each clipped to the range the network declares (:func:`jaxgait.control.spinal.control_commands`);
    the feedforward term inverts the speed law of the systematic searches (thesis eq. 7.1:
    S = a1 O_INBAS + a2 omega + a3, so k_ff = 1 / a1 with k_w = 0);
-4. runs the network with that control vector (the other commands as scheduled).
+5. runs the network with that control vector (the other commands as scheduled).
 
 The law's gains are its parameter table (:data:`AUTO_SPEED`, what an optimiser searches); the
 network's own FBL parameters are fixed data of the wrapper.  The wrapper's commands are
@@ -46,6 +52,10 @@ AUTO_SPEED = ParamTable(
         ParamSpec("k_w", 0.0, -2.0, 2.0, _L + ": omega per m/s of target", "1/m"),
         ParamSpec("tau_v", 1.0, 0.2, 3.0, "speed filter time constant (about a stride)", "s"),
         ParamSpec("i_max", 2.0, 0.1, 10.0, "anti-windup bound of the integral", "m"),
+        ParamSpec("k_g", 0.5, 0.05, 1.0, "grade filter: fraction of a touchdown's estimate"),
+        ParamSpec("k_sb", 0.0, -1.0, 1.0, "slope rule: O_INBAS per unit grade", "stim"),
+        ParamSpec("k_sc", 0.0, -1.0, 1.0, "slope rule: O_INCPG per unit grade", "stim"),
+        ParamSpec("k_sw", 0.0, -3.0, 3.0, "slope rule: omega per unit grade", "cycles/s"),
     ),
 )
 
@@ -62,46 +72,67 @@ class AutoSettings:
 
 @struct.dataclass
 class AutoState:
-    """The wrapped controller's state, the filtered speed v [m/s] and the integral I [m]."""
+    """The wrapped controller's state, the filtered speed v [m/s], the integral I [m] and
+    the grade estimate g [-]."""
 
     inner: object
     v: jax.Array
     integral: jax.Array
+    grade: jax.Array
 
 
-def speed_commands(p: dict, v_target, v, integral, sched: dict, commands) -> dict:
-    """The network's command dict from the law (step 3 of the module docstring)."""
+def grade_at_touchdown(feet, touchdown, grade, k_g):
+    """Step 3 of the module docstring: the grade estimate after this step's touchdowns.
+
+    feet: (4, 2) heel_r, ball_r, heel_l, ball_l (x, z) [m]; touchdown: (2,) bool."""
+    heel = feet[jnp.array([0, 2])]  # (2, 2) heel of the leg touching down
+    ball = feet[jnp.array([3, 1])]  # (2, 2) ball of the other leg
+    dx = heel[:, 0] - ball[:, 0]
+    dx = jnp.where(jnp.abs(dx) < 0.05, jnp.where(dx < 0, -0.05, 0.05), dx)
+    g_td = (heel[:, 1] - ball[:, 1]) / dx
+    for leg in range(2):
+        grade = jnp.where(touchdown[leg], grade + k_g * (g_td[leg] - grade), grade)
+    return grade
+
+
+def speed_commands(p: dict, v_target, v, integral, sched: dict, commands, grade=0.0) -> dict:
+    """The network's command dict from the law (step 4 of the module docstring)."""
     out = dict(sched)
     dv = v_target - p["v_ref"]
     e = v_target - v
     lim = {c.name: (c.lower, c.upper) for c in commands}
     if "O_INBAS" in out:
         o = out["O_INBAS"] + p["k_ff"] * dv + p["k_p"] * e + p["k_i"] * integral
-        out["O_INBAS"] = jnp.clip(o, *lim["O_INBAS"])
+        out["O_INBAS"] = jnp.clip(o + p["k_sb"] * grade, *lim["O_INBAS"])
+    if "O_INCPG" in out:
+        out["O_INCPG"] = jnp.clip(out["O_INCPG"] + p["k_sc"] * grade, *lim["O_INCPG"])
     if "omega" in out:
-        out["omega"] = jnp.clip(out["omega"] + p["k_w"] * dv, *lim["omega"])
+        w = out["omega"] + p["k_w"] * dv + p["k_sw"] * grade
+        out["omega"] = jnp.clip(w, *lim["omega"])
     return out
 
 
 def auto_init(ctrl: Controller, sens: Sensors, dt: float) -> AutoState:
     inner = ctrl.settings.inner
     v0 = sens.com_vel[0]
-    return AutoState(inner=inner.init(inner, sens, dt), v=v0, integral=jnp.zeros_like(v0))
+    z = jnp.zeros_like(v0)
+    return AutoState(inner=inner.init(inner, sens, dt), v=v0, integral=z, grade=z)
 
 
 def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: dict, dt):
-    """One step: the law, then the network (see the module docstring)."""
+    """One step: the speed filter, the integral, the grade, the law, then the network."""
     st = ctrl.settings
     inner = st.inner
     a = 1.0 - jnp.exp(-dt / p["tau_v"])
     v = s.v + a * (sens.com_vel[0] - s.v)
     e = command["v_target"] - v
     integral = jnp.clip(s.integral + dt * e, -p["i_max"], p["i_max"])
+    grade = grade_at_touchdown(sens.feet, sens.touchdown, s.grade, p["k_g"])
     sched = {c.name: command[c.name] for c in inner.commands}
-    cmd = speed_commands(p, command["v_target"], v, integral, sched, inner.commands)
+    cmd = speed_commands(p, command["v_target"], v, integral, sched, inner.commands, grade)
     q = inner.table.unpack(jnp.asarray(st.inner_params, sens.f_norm.dtype))
     stim, inner_state = inner.step(inner, q, sens, s.inner, cmd, dt)
-    return stim, AutoState(inner=inner_state, v=v, integral=integral)
+    return stim, AutoState(inner=inner_state, v=v, integral=integral, grade=grade)
 
 
 def speed_controller(

@@ -86,3 +86,60 @@ def track(preset, profile, segment_s: float = 20.0, settle_s: float = 5.0, env=N
         "fell": bool(np.asarray(sm.fell)),
         "duration_s": float(np.asarray(sm.duration)),
     }
+
+
+def speed_range(
+    preset, targets, duration_s: float = 30.0, measure_s: float = 10.0, tol: float = 0.1
+) -> dict:
+    """Constant targets held for ``duration_s`` each (one batched rollout per target, flat
+    ground): a target is *held* when the walker does not fall and its mean speed over the
+    last ``measure_s`` seconds is within ``tol`` [m/s] of it.  Returns per target the mean
+    speed and the flags, and the slowest and fastest held targets (and whether every
+    target between them is held)."""
+    import jax
+    import jax.numpy as jnp
+
+    from jaxgait.world import envs
+
+    name, vec, doc = load_preset(preset)
+    model = models.get_model(name)
+    if "v_target" not in model.controller.command_names:
+        raise SpinalError(f"{preset}: model {name!r} has no v_target command")
+    if not 0 < measure_s <= duration_s:
+        raise SpinalError(f"need 0 < measure_s <= duration_s, got {measure_s}, {duration_s}")
+    targets = np.asarray(targets, float)
+    rows = [schedule(model.controller.commands, {"v_target": float(v)}) for v in targets]
+    sched = jax.tree.map(lambda *a: jnp.stack(a), *rows)
+    cfg = sim.SimConfig(duration=duration_s, log_dt=0.1, v0=float(doc.get("v0", sim.SimConfig.v0)))
+    n = targets.size
+    env = envs.make_env_batch("flat", jax.random.split(jax.random.PRNGKey(0), n))
+    f = sim.make_rollout(model, cfg, batched=True)
+    params = jnp.broadcast_to(model.table.as_jnp(vec), (n, model.table.size))
+    tr, _, sm, _ = f(params, env, sched)
+    t = np.asarray(tr.t, float)
+    x = np.asarray(tr.com, float)[..., 0]
+    fell = np.asarray(sm.fell, bool)
+    speed = np.full(n, np.nan)
+    for k in range(n):
+        w = t[k] >= duration_s - measure_s - 1e-9
+        if not fell[k] and w.sum() >= 2:
+            i0, i1 = np.flatnonzero(w)[[0, -1]]
+            speed[k] = (x[k, i1] - x[k, i0]) / (t[k, i1] - t[k, i0])
+    held = (~fell) & (np.abs(speed - targets) <= tol)
+    idx = np.flatnonzero(held)
+    slowest = float(targets[idx].min()) if idx.size else None
+    fastest = float(targets[idx].max()) if idx.size else None
+    contiguous = bool(idx.size and held[idx.min() : idx.max() + 1].all())
+    return {
+        "model": name,
+        "targets": targets.tolist(),
+        "speed_mps": speed.tolist(),
+        "fell": fell.tolist(),
+        "held": held.tolist(),
+        "tol_mps": tol,
+        "duration_s": duration_s,
+        "measure_s": measure_s,
+        "slowest_held_mps": slowest,
+        "fastest_held_mps": fastest,
+        "all_between_held": contiguous,
+    }

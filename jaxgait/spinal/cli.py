@@ -13,6 +13,10 @@ Subcommands (each prints a table or JSON line, and writes its JSON and figures t
           [--measure 4] [--out DIR]                                  # Fig. 7.6-7.10
     auto PRESET --name NAME [--gain NAME=V ...] [--out-dir DIR]      # automatic speed law
     track PRESET [--profile 1.0,1.5,0.7,1.3] [--segment 20] [--out DIR]
+    tune PRESET --name NAME [--gains ...] [--v-range 0.9,1.5] [--slope S]   # CMA-ES law
+    range PRESET [PRESET ...] [--targets 0.5:1.8:14] [--duration 30]        # speeds held
+    climb PRESET [PRESET ...] [--seeds 3] [--duration 150]                 # Fig. 7.5
+    maps PRESET [--n 7] [--omegas 6] [--out DIR]                           # Fig. 7.9-7.10
 
 A built model preset is named ``<prefix><kind>_walk`` (``fblminus_walk``, ``3fbl_walk``,
 ``3fbl_prime_walk``, ``fblnet_walk`` with an empty prefix) and holds the FBL parameters of
@@ -39,6 +43,7 @@ from jaxgait.spinal.build import (
     select,
     select_walking,
 )
+from jaxgait.spinal.cli_control import add_parsers, label, write_json
 from jaxgait.spinal.record import SpinalError, analyse, record
 
 FILE_NAMES = {
@@ -49,22 +54,11 @@ FILE_NAMES = {
 }
 
 
-def _label(preset: str) -> str:
-    return Path(str(preset)).stem if str(preset).endswith(".json") else Path(str(preset)).name
-
-
 def _analysis(preset, duration, skip):
     rec = record(preset, duration=duration)
     if rec.fell:
         raise SpinalError(f"{preset}: fell after {rec.duration:.1f} s of {duration} s")
     return rec, analyse(rec, skip=skip)
-
-
-def _write_json(out: Path, name: str, doc) -> Path:
-    out.mkdir(parents=True, exist_ok=True)
-    p = out / name
-    p.write_text(json.dumps(json_safe(doc), indent=1, allow_nan=False) + "\n")
-    return p
 
 
 def cmd_variability(a) -> dict:
@@ -73,7 +67,7 @@ def cmd_variability(a) -> dict:
     res, ans = {}, {}
     for preset in a.presets:
         _, an = _analysis(preset, a.duration, a.skip)
-        lab = _label(preset)
+        lab = label(preset)
         ans[lab] = an
         res[lab] = {"stride_s": an.stride_s, "n_cycles": an.n_cycles, "table": an.table()}
         print(f"\n{lab}: {an.n_cycles[0]} cycles per leg, stride {an.stride_s:.3f} s")
@@ -83,7 +77,7 @@ def cmd_variability(a) -> dict:
             print(f"{r['name']:<20} {vals}")
     out = Path(a.out)
     res["figure"] = str(plot_variability(out / "fig7_1_variability.png", ans))
-    res["json"] = str(_write_json(out, "variability.json", res))
+    res["json"] = str(write_json(out, "variability.json", res))
     return res
 
 
@@ -92,7 +86,7 @@ def cmd_patterns(a) -> dict:
     from jaxgait.spinal.figures import plot_patterns
 
     (_, an_a), (_, an_b) = (_analysis(p, a.duration, a.skip) for p in (a.a, a.b))
-    labels = (_label(a.a), _label(a.b))
+    labels = (label(a.a), label(a.b))
     corr = {
         n: pattern_correlation(an_a.per_leg[n][0].pattern, an_b.per_leg[n][0].pattern)
         for n in an_a.per_leg
@@ -102,7 +96,7 @@ def cmd_patterns(a) -> dict:
     out = Path(a.out)
     fig = plot_patterns(out / "fig7_3_patterns.png", an_a, an_b, labels)
     res = {"gaits": labels, "correlation": corr, "figure": str(fig)}
-    res["json"] = str(_write_json(out, "patterns.json", res))
+    res["json"] = str(write_json(out, "patterns.json", res))
     return res
 
 
@@ -165,7 +159,7 @@ def cmd_build(a) -> dict:
     for kind in kinds:
         name = f"{a.prefix}{FILE_NAMES[kind]}_walk"
         desc = (
-            f"{kind} (thesis 6.2.1) built from {_label(source)} by `python -m jaxgait.spinal "
+            f"{kind} (thesis 6.2.1) built from {label(source)} by `python -m jaxgait.spinal "
             f"build`: {len(replaced)} IN_SEN replaced ({', '.join(replaced) or 'none'})"
         )
         net = build_network(
@@ -181,7 +175,7 @@ def cmd_build(a) -> dict:
             description=desc,
         )
         doc = model_preset(net, kind, rec.vec, source, replaced, an, settings)
-        path = _write_json(Path(a.out_dir), f"{name}.json", doc)
+        path = write_json(Path(a.out_dir), f"{name}.json", doc)
         written[kind] = str(path)
         print(f"wrote {path}")
     return {"replaced": replaced, "presets": written, "settings": settings}
@@ -194,7 +188,7 @@ def cmd_compare(a) -> dict:
     runs, res = {}, {}
     for preset in a.presets:
         r = evaluate.run(preset, duration=a.duration)
-        runs[_label(preset)] = r
+        runs[label(preset)] = r
         keys = (
             "duration_s",
             "distance_m",
@@ -206,11 +200,11 @@ def cmd_compare(a) -> dict:
             "corr_ankle",
             "energy_J_per_m",
         )
-        res[_label(preset)] = {k: r.report.get(k) for k in keys}
-        print(_label(preset), json.dumps(json_safe(res[_label(preset)])))
+        res[label(preset)] = {k: r.report.get(k) for k in keys}
+        print(label(preset), json.dumps(json_safe(res[label(preset)])))
     out = Path(a.out)
     res["figure"] = str(plot_models(out / "fig7_2_models.png", runs))
-    res["json"] = str(_write_json(out, "compare.json", res))
+    res["json"] = str(write_json(out, "compare.json", res))
     return res
 
 
@@ -222,7 +216,7 @@ def cmd_robust(a) -> dict:
     rows, res = {}, {}
     for preset in a.presets:
         name, vec, _ = load_preset(preset)
-        lab = _label(preset)
+        lab = label(preset)
         rob = robustness(models.get_model(name), vec, RobustnessConfig(seeds=a.seeds, seed=a.seed))
         ev = evaluate.run(preset, duration=a.duration)
         res[lab] = {"robustness": rob, "c_angles": ev.report.get("c_angles")}
@@ -240,7 +234,7 @@ def cmd_robust(a) -> dict:
         print(lab, json.dumps(json_safe(rows[lab])))
     out = Path(a.out)
     res["figure"] = str(plot_robustness(out / "fig7_4_robustness.png", rows))
-    res["json"] = str(_write_json(out, "robustness.json", res))
+    res["json"] = str(write_json(out, "robustness.json", res))
     return res
 
 
@@ -277,7 +271,7 @@ def cmd_search(a) -> dict:
         )
     out = Path(a.out)
     res["figure"] = str(plot_search(out / f"search_{xn}_{yn}.png", res))
-    res["json"] = str(_write_json(out, f"search_{xn}_{yn}.json", res))
+    res["json"] = str(write_json(out, f"search_{xn}_{yn}.json", res))
     return res
 
 
@@ -285,7 +279,7 @@ def cmd_auto(a) -> dict:
     from jaxgait.spinal.auto import auto_preset
 
     doc = auto_preset(a.preset, a.name, _name_values(a.gain, "--gain"))
-    path = _write_json(Path(a.out_dir), f"{a.name}.json", doc)
+    path = write_json(Path(a.out_dir), f"{a.name}.json", doc)
     print(f"wrote {path}")
     return {"presets": {"auto": str(path)}}
 
@@ -307,7 +301,7 @@ def cmd_track(a) -> dict:
         k: r[k] for k in ("model", "profile", "segment_s", "settle_s", "rms", "fell", "duration_s")
     }
     res = {**keep, "figure": str(fig)}
-    res["json"] = str(_write_json(out, "tracking.json", res))
+    res["json"] = str(write_json(out, "tracking.json", res))
     return res
 
 
@@ -384,6 +378,7 @@ def _parser() -> argparse.ArgumentParser:
     q.add_argument("--segment", type=float, default=20.0, help="seconds per target (20)")
     q.add_argument("--settle", type=float, default=5.0, help="seconds left out of the RMS (5)")
     q.add_argument("--out", default="runs/spinal/tracking")
+    add_parsers(sub)  # tune, range, climb: each sets its own handler (``func``)
     return p
 
 
@@ -410,7 +405,7 @@ def main(argv=None) -> int:
             getattr(a, x) for x in ("a", "b", "preset") if hasattr(a, x)
         ]:
             resolve_preset(p)
-        res = COMMANDS[a.cmd](a)
+        res = (getattr(a, "func", None) or COMMANDS[a.cmd])(a)
     except (SpinalError, PresetError, ValueError) as e:
         print(f"jaxgait.spinal {a.cmd}: error: {e}", file=sys.stderr)
         return 2
@@ -422,7 +417,7 @@ def main(argv=None) -> int:
                     **{
                         k: v
                         for k, v in res.items()
-                        if k in ("json", "figure", "presets", "replaced", "speed_law")
+                        if k in ("json", "figure", "presets", "replaced", "speed_law", "held_out")
                     },
                 }
             )

@@ -8,7 +8,9 @@ Each function draws on its own Agg :class:`~matplotlib.figure.Figure` and return
   correlations (Fig. 7.3);
 * :func:`plot_models`: joint angles over the cycle against Winter, their correlations and
   the vertical GRF of several models (Fig. 7.2);
-* :func:`plot_robustness`: C_angles, max push and max slope change, mean +- SD (Fig. 7.4).
+* :func:`plot_robustness`: C_angles, max push and max slope change, mean +- SD (Fig. 7.4);
+* :func:`plot_climb`: distance and grade reached on the increasing slope (Fig. 7.5);
+* :func:`plot_speed_range`, :func:`plot_tuning`: constant targets held; CMA-ES progress.
 """
 
 from __future__ import annotations
@@ -198,4 +200,99 @@ def plot_tracking(path, r: dict) -> Path:
         f"speed tracking, RMS error per segment after {r['settle_s']:g} s: {rms} m/s; {end}",
         fontsize=9,
     )
+    return _save(fig, path)
+
+
+def plot_speed_range(path, results: dict[str, dict]) -> Path:
+    """Mean speed over the last seconds against the constant target, per model; the
+    targets held (within the tolerance, no fall) filled, the others open, falls at 0."""
+    fig = Figure(figsize=(5.5, 4.5), layout="constrained")
+    ax = fig.subplots()
+    lo = min(min(r["targets"]) for r in results.values())
+    hi = max(max(r["targets"]) for r in results.values())
+    ax.plot([lo, hi], [lo, hi], color="0.6", lw=1, label="target")
+    for k, (lab, r) in enumerate(results.items()):
+        tg, sp = np.asarray(r["targets"]), np.nan_to_num(np.asarray(r["speed_mps"], float))
+        held = np.asarray(r["held"], bool)
+        c = COLORS[k % 6]
+        ax.plot(tg, sp, color=c, lw=0.8)
+        ax.scatter(tg[held], sp[held], color=c, s=25, label=f"{lab} (held)")
+        ax.scatter(tg[~held], sp[~held], facecolors="none", edgecolors=c, s=25)
+    ax.set_xlabel("target speed [m/s]")
+    ax.set_ylabel("speed over the last seconds [m/s] (0: fell)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("constant targets held for the whole walk", fontsize=9)
+    return _save(fig, path)
+
+
+def plot_climb(path, rows: dict[str, dict]) -> Path:
+    """Thesis Fig. 7.5: distance walked and steepest grade reached on the increasing slope,
+    ``{label: {"distance_m": (mean, sd), "grade_pct": (mean, sd)}}``."""
+    fig = Figure(figsize=(9, 3.6), layout="constrained")
+    axes = fig.subplots(1, 2)
+    labels = list(rows)
+    for ax, key, title in zip(
+        axes,
+        ("distance_m", "grade_pct"),
+        ("distance on the increasing slope [m]", "steepest grade reached [%]"),
+        strict=True,
+    ):
+        mean = [rows[lab][key][0] for lab in labels]
+        sd = [rows[lab][key][1] for lab in labels]
+        ax.bar(labels, mean, yerr=sd, color=[COLORS[k % 6] for k in range(len(labels))], capsize=4)
+        ax.set_title(title, fontsize=9)
+        ax.grid(alpha=0.3, axis="y")
+        ax.tick_params(axis="x", labelsize=7, rotation=20)
+    fig.suptitle("Increasing slope, 0 -> 30 % over 160 m (thesis Fig. 7.5)", fontsize=10)
+    return _save(fig, path)
+
+
+def plot_tuning(path, history: list[dict]) -> Path:
+    """CMA-ES progress of a command-law training: best and mean fitness per generation."""
+    fig = Figure(figsize=(6, 3.6), layout="constrained")
+    ax = fig.subplots()
+    g = [h["generation"] for h in history]
+    ax.plot(g, [h["best"] for h in history], "o-", ms=3, label="best of the generation")
+    ax.plot(g, [h["mean"] for h in history], "s-", ms=3, label="mean of the generation")
+    ax.set_xlabel("generation")
+    ax.set_ylabel("fitness (lower is better)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def plot_maps(path, pairs: list[dict], measure: str) -> Path:
+    """Thesis Fig. 7.9-7.10: one quadrant of the systematic searches, a map of ``measure``
+    per (pair of commands: column, z value: row), on one colour scale; blank = fell."""
+    nz = len(pairs[0]["z_values"])
+    fig = Figure(figsize=(2.0 * len(pairs) + 1.2, 1.7 * nz + 0.8), layout="constrained")
+    axes = np.atleast_2d(fig.subplots(nz, len(pairs), squeeze=False))
+    vals = np.concatenate([np.ravel(np.asarray(r["grid"][measure], float)) for r in pairs])
+    vals = vals[np.isfinite(vals)]
+    vmin, vmax = (float(vals.min()), float(vals.max())) if vals.size else (0.0, 1.0)
+    im = None
+    for c, r in enumerate(pairs):
+        g = np.asarray(r["grid"][measure], float)
+        for k in range(nz):
+            ax = axes[k, c]
+            im = ax.imshow(
+                np.ma.masked_invalid(g[k]), origin="lower", aspect="auto", cmap="viridis",
+                vmin=vmin, vmax=vmax,
+            )  # fmt: skip
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if k == nz - 1:
+                ax.set_xlabel(
+                    f"{r['x']}\n[{r['x_values'][0]:g}, {r['x_values'][-1]:g}]", fontsize=7
+                )
+            if c == 0:
+                ax.set_ylabel(f"{r['z']} {r['z_values'][k]:.2f}", fontsize=7)
+            if k == 0:
+                ax.set_title(
+                    f"y: {r['y']} [{r['y_values'][0]:g}, {r['y_values'][-1]:g}]", fontsize=7
+                )
+    if im is not None:
+        fig.colorbar(im, ax=axes, shrink=0.6, label=measure)
+    fig.suptitle(f"{pairs[0]['model']}: systematic search, {measure} (blank = fell)", fontsize=9)
     return _save(fig, path)

@@ -8,7 +8,9 @@ thesis) through the x values in increasing order and the gait is measured over t
 walks ``warmup_s`` seconds at the default control vector (the feedforward interneurons switch
 on and the start transient dies out before the first setting).  A fall ends its
 column: that setting and the later ones are blank (NaN), as the white cells of the thesis's
-maps.  The columns run as one batch (``vmap`` over their schedules).
+maps.  The columns run as one batch (``vmap`` over their schedules).  An optional third
+command ``z`` (omega in thesis Fig. 7.9-7.10) repeats the grid for each of its values in the
+same batch: the measures then have the shape (len(z), len(y), len(x)).
 
 Per setting (:func:`window_measures`): mean speed [m/s], energy per metre [J/m], fraction of
 time in double stance [-] and its duration per cycle [s], cycle frequency and length [Hz, s]
@@ -54,10 +56,14 @@ class Search:
     hold_s: float = 10.0
     measure_s: float = 4.0
     warmup_s: float = 10.0
+    z: str | None = None
+    z_values: tuple[float, ...] = ()
 
     def __post_init__(self):
         if self.x == self.y:
             raise SpinalError(f"the two searched commands must differ, got {self.x!r} twice")
+        if self.z is not None and (self.z in (self.x, self.y) or not self.z_values):
+            raise SpinalError(f"the third command {self.z!r} must differ and have values")
         if not (0 < self.measure_s <= self.hold_s):
             raise SpinalError(f"need 0 < measure_s <= hold_s, got {self.measure_s}, {self.hold_s}")
         if self.warmup_s < 0:
@@ -72,20 +78,23 @@ def windows(search: Search) -> list[tuple[float, float]]:
     return [(w + (j + 1) * h - m, w + (j + 1) * h) for j in range(len(search.x_values))]
 
 
+def columns(search: Search) -> list[dict]:
+    """The held commands of each column: z values (outer) by y values (inner)."""
+    zs = [{search.z: float(v)} for v in search.z_values] if search.z is not None else [{}]
+    return [{**search.fixed, **z, search.y: float(yv)} for z in zs for yv in search.y_values]
+
+
 def column_schedules(commands, search: Search):
-    """The batch (one per y value) of hold schedules stepping through the x values."""
+    """The batch (one per column, :func:`columns`) of hold schedules stepping through x."""
     names = {c.name for c in commands}
-    for n in (search.x, search.y, *search.fixed):
+    for n in (search.x, search.y, *([search.z] if search.z else []), *search.fixed):
         if n not in names:
             raise SpinalError(f"command {n!r} is not one of this model's: {sorted(names)}")
     cols = []
-    for yv in search.y_values:
+    for held in columns(search):
         knots = [(0.0, {})] if search.warmup_s > 0 else []
         knots += [
-            (
-                search.warmup_s + j * search.hold_s,
-                {**search.fixed, search.y: float(yv), search.x: float(xv)},
-            )
+            (search.warmup_s + j * search.hold_s, {**held, search.x: float(xv)})
             for j, xv in enumerate(search.x_values)
         ]
         cols.append(schedule(commands, knots))
@@ -135,12 +144,12 @@ def _rollout(model, cfg: sim.SimConfig):
 
 
 def run_search(preset, search: Search, env: str = "flat", seed: int = 0) -> dict:
-    """Run a search on a network preset: ``{measure: (len(y), len(x)) array}`` plus the
-    grid, the model name and the fall count."""
+    """Run a search on a network preset: ``{measure: (len(y), len(x)) array}`` (with ``z``:
+    (len(z), len(y), len(x))) plus the grid, the model name and the falls per column."""
     name, vec, doc = load_preset(preset)
     model = models.get_model(name)
     sched = column_schedules(model.controller.commands, search)
-    ny, nx = len(search.y_values), len(search.x_values)
+    ny, nx = len(columns(search)), len(search.x_values)
     duration = search.warmup_s + nx * search.hold_s
     cfg = sim.SimConfig(
         duration=duration,
@@ -161,6 +170,10 @@ def run_search(preset, search: Search, env: str = "flat", seed: int = 0) -> dict
         one_e = jax.tree.map(lambda x, i=i: x[i], events)
         for k, v in window_measures(one_t, one_e, wins, float(fell_at[i])).items():
             grid[k][i] = v
+    if search.z is not None:
+        grid = {
+            k: v.reshape(len(search.z_values), len(search.y_values), nx) for k, v in grid.items()
+        }
     return {
         "model": name,
         "x": search.x,
@@ -168,6 +181,7 @@ def run_search(preset, search: Search, env: str = "flat", seed: int = 0) -> dict
         "y": search.y,
         "y_values": list(search.y_values),
         "fixed": dict(search.fixed),
+        **({"z": search.z, "z_values": list(search.z_values)} if search.z else {}),
         "hold_s": search.hold_s,
         "measure_s": search.measure_s,
         "warmup_s": search.warmup_s,
