@@ -30,6 +30,7 @@ from jaxgait.control.fbl import FBL_CONTROLLER
 from jaxgait.control.fblplus import FBLPLUS_CONTROLLER
 from jaxgait.control.interface import Controller
 from jaxgait.control.spinal import FBL_NET, spinal_controller
+from jaxgait.control.wang import WANG_CONTROLLER
 from jaxgait.core.params import ParamTable
 from jaxgait.sim.model import planar_model
 from jaxgait.taga.sim import COMMANDS as TAGA_COMMANDS
@@ -55,7 +56,8 @@ class ModelSpec:
 
 
 def planar_spec(controller: Controller, description: str | None = None) -> ModelSpec:
-    """The spec of ``controller`` on the planar Geyer body (:func:`jaxgait.sim.planar_model`)."""
+    """The spec of ``controller`` on the planar Geyer body (:func:`jaxgait.sim.planar_model`,
+    with the muscle table of the controller's muscle count)."""
 
     def build(timestep=None):
         return planar_model(controller, timestep)
@@ -121,6 +123,7 @@ register(
         build=_taga_build,
     )
 )
+register(planar_spec(WANG_CONTROLLER))
 
 
 def model_names(family: str | None = None) -> tuple[str, ...]:

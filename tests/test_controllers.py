@@ -13,6 +13,7 @@ from jaxgait import evaluate, models, presets, sim, taga
 from jaxgait.control import commands as cmd
 from jaxgait.control.interface import Controller
 from jaxgait.core.params import ParamSpec, ParamTable
+from jaxgait.muscles.mtu import GEYER7, WANG8
 from jaxgait.train import experiments as exps
 from jaxgait.train import main as train_main
 from jaxgait.train import train
@@ -89,7 +90,10 @@ def test_example_controller_runs_through_train(const_model, tmp_path):
 def test_controller_must_match_the_muscle_table():
     bad = Controller("bad", CONST, 8, const_init, const_step)
     with pytest.raises(ValueError, match="8 muscles per leg, the muscle table has 7"):
-        sim.planar_model(bad)
+        sim.planar_model(bad, muscles=GEYER7)
+    assert sim.planar_model(bad).muscles is WANG8  # the default table of 8 muscles
+    with pytest.raises(ValueError, match="9 muscles per leg; no default muscle table"):
+        sim.planar_model(Controller("bad9", CONST, 9, const_init, const_step))
 
 
 # ------------------------------------------------------------------ the registry

@@ -56,6 +56,9 @@ class Sensors:
       com: (2,) centre of mass (x, z) [m]; com_vel: (2,) its velocity [m/s].
       feet: (4, 2) heel_r, ball_r, heel_l, ball_l positions (x, z) [m].
       dcom: (2,) (x_CoM - x_ball) / foot length per leg [-]: CoM ahead of the ball +.
+      ankle: (2, 2) ankle positions (x, z) per leg [m]; ankle_vel: (2, 2) their velocities
+        [m/s].
+      dleg: (2,) (x_CoM - x_ankle) / leg length per leg [-]: CoM ahead of the ankle +.
     """
 
     t: jax.Array
@@ -76,6 +79,9 @@ class Sensors:
     com_vel: jax.Array
     feet: jax.Array
     dcom: jax.Array
+    ankle: jax.Array
+    ankle_vel: jax.Array
+    dleg: jax.Array
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,6 +97,10 @@ class Controller:
       commands: its command inputs, in control-vector order.
       settings: static data the functions read.
       description: one line for listings.
+      initial_offsets: ``None`` or ``(ctrl, p) -> (dq (7,), dv)``: parameter-dependent
+        offsets of the initial posture (trunk pitch, then hip, knee, ankle of the stance leg
+        and of the swing leg, Winter convention [rad]) and of the initial forward speed
+        [m/s], added to the simulator's pose and ``v0`` (:func:`jaxgait.sim.initial_state`).
     """
 
     name: str
@@ -101,6 +111,7 @@ class Controller:
     commands: tuple[Command, ...] = ()
     settings: Any = None
     description: str = ""
+    initial_offsets: Callable[..., tuple[jax.Array, jax.Array]] | None = None
 
     @property
     def command_names(self) -> tuple[str, ...]:

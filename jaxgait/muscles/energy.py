@@ -22,6 +22,8 @@ v_ce < 0 and the shortening speed is max(-v_ce, 0).
 
 Wang et al. 2012 add a basal rate of 1.51 W per kg of body mass and define their effort as
 J = w_M J_M + w_R J_R + w_L J_L with (w_M, w_R, w_L) = (100, 1, 0.5) (``wang_effort``).
+Wang's own per-muscle rate (its g differs from eq. 2.43), task terms and return are in
+:mod:`jaxgait.muscles.effort`.
 """
 
 from __future__ import annotations

@@ -4,7 +4,10 @@ A :class:`Model` is static data closed over by ``jit``: the MJCF body
 (:class:`~jaxgait.body.planar.Body`), the muscle table, a
 :class:`~jaxgait.control.interface.Controller`, the contact law, the ligament soft limits
 and the gait-phase detection.  :func:`planar_model` puts a controller on the planar Geyer
-body with its 7 muscles per leg; the registry of named models is :mod:`jaxgait.models`.
+body with the muscle table of its muscle count (7 per leg: Geyer & Herr's
+:data:`~jaxgait.muscles.mtu.GEYER7`; 8: Wang et al. 2012's
+:data:`~jaxgait.muscles.mtu.WANG8`, with rectus femoris); the registry of named models is
+:mod:`jaxgait.models`.
 """
 
 from __future__ import annotations
@@ -202,6 +205,13 @@ class Model:
         return self.body.total_mass
 
     @cached_property
+    def leg_length(self) -> float:
+        """Hip-to-ankle length of the straight right leg (thigh + shank) [m]."""
+        m = self.body.mj_model
+        shank, foot = m.body("shank_r").id, m.body("foot_r").id
+        return float(np.linalg.norm(self.body.pos[shank]) + np.linalg.norm(self.body.pos[foot]))
+
+    @cached_property
     def foot_length(self) -> float:
         """Heel-to-ball distance of the right foot [m]."""
         b = self.body
@@ -253,11 +263,29 @@ class Model:
         return pts, jac
 
 
+#: The muscle table of each muscle count per leg (:func:`planar_model`).
+MUSCLE_TABLES: dict[int, MuscleTable] = {7: mus.GEYER7, 8: mus.WANG8}
+
+
 def planar_model(
-    controller: Controller, timestep: float | None = None, name: str | None = None
+    controller: Controller,
+    timestep: float | None = None,
+    name: str | None = None,
+    muscles: MuscleTable | None = None,
 ) -> Model:
-    """``controller`` on the planar Geyer body (``models/fbl_planar.xml``) with the 7-muscle
-    Geyer table.  ``timestep`` [s] overrides the MJCF's physics step (delays must stay whole
-    steps)."""
+    """``controller`` on the planar Geyer body (``models/fbl_planar.xml``).
+
+    ``muscles`` defaults to the table of the controller's muscle count
+    (:data:`MUSCLE_TABLES`: 7 -> GEYER7, 8 -> WANG8).  ``timestep`` [s] overrides the MJCF's
+    physics step (delays must stay whole steps).
+    """
+    if muscles is None:
+        if controller.n_muscles not in MUSCLE_TABLES:
+            raise ValueError(
+                f"controller {controller.name!r} stimulates {controller.n_muscles} muscles per "
+                f"leg; no default muscle table for that count (known: "
+                f"{sorted(MUSCLE_TABLES)}); pass muscles=<MuscleTable>"
+            )
+        muscles = MUSCLE_TABLES[controller.n_muscles]
     body = load_body("fbl_planar", timestep)
-    return Model(body=body, muscles=mus.GEYER7, controller=controller, name=name or controller.name)
+    return Model(body=body, muscles=muscles, controller=controller, name=name or controller.name)

@@ -53,13 +53,27 @@ def scheduled_command(model: Model, commands: Schedule | None, t, dtype):
 
 
 def sensors_of(
-    model: Model, t, f_mtu, l_ce, phi, dphi, qpos, qvel, gait, touchdown, ds, pts, com_vel
+    model: Model,
+    t,
+    f_mtu,
+    l_ce,
+    phi,
+    dphi,
+    qpos,
+    qvel,
+    gait,
+    touchdown,
+    ds,
+    pts,
+    com_vel,
+    ankle_vel,
 ) -> Sensors:
     """The shared :class:`~jaxgait.control.interface.Sensors` of one step.
 
     Args: time [s]; f_mtu, l_ce (2, M) [N, m]; phi, dphi (2, 3) GH angles and rates; qpos,
     qvel the generalised state; gait: the updated :class:`~jaxgait.control.gait.GaitState`;
-    touchdown, ds (2,) bool; pts (9, 2) the points of :meth:`Model.points`; com_vel (2,).
+    touchdown, ds (2,) bool; pts (9, 2) the points of :meth:`Model.points`; com_vel (2,);
+    ankle_vel (2, 2) the velocities of the ankles (points 4 and 5).
     """
     table = model.muscles
     dtype = qpos.dtype
@@ -82,6 +96,9 @@ def sensors_of(
         com_vel=com_vel,
         feet=pts[:4],
         dcom=(pts[7, 0] - pts[[1, 3], 0]) / model.foot_length,
+        ankle=pts[4:6],
+        ankle_vel=ankle_vel,
+        dleg=(pts[7, 0] - pts[4:6, 0]) / model.leg_length,
     )
 
 
@@ -94,7 +111,11 @@ def initial_state(
     commands: Schedule | None = None,
     command_law: CommandLaw | None = None,
 ) -> SimState:
-    """Posture ``cfg.pose`` with the stance foot on the ground, moving at ``cfg.v0``."""
+    """Posture ``cfg.pose`` with the stance foot on the ground, moving at ``cfg.v0``.
+
+    A controller with ``initial_offsets`` (:class:`~jaxgait.control.interface.Controller`)
+    shifts the pose's angles and ``v0`` by parameter-dependent offsets first.
+    """
     dtype = jnp.asarray(params).dtype
     if cfg.pose not in POSES:
         raise KeyError(f"unknown pose {cfg.pose!r}; available: {sorted(POSES)}")
@@ -105,14 +126,21 @@ def initial_state(
     q[legq[0]] = np.deg2rad(stance)
     q[legq[1]] = np.deg2rad(swing)
     qpos = jnp.asarray(q, dtype)
+    v0 = cfg.v0
+    ctrl = model.controller
+    if ctrl.initial_offsets is not None:  # parameter-dependent start (e.g. Wang 2012 section 5)
+        dq, dv = ctrl.initial_offsets(ctrl, model.table.unpack(jnp.asarray(params)))
+        dq = jnp.asarray(dq, dtype)
+        qpos = qpos.at[2].add(dq[0]).at[legq[0]].add(dq[1:4]).at[legq[1]].add(dq[4:7])
+        v0 = v0 + jnp.asarray(dv, dtype)
     pts = model.points(qpos, jnp.zeros((), dtype))
     # lift the body so the lowest point of the stance foot is on the ground
     ground = env.terrain.height(pts[:2, 0])
     lift = jnp.max(ground - pts[:2, 1])
     qpos = qpos.at[1].add(lift)
-    qvel = jnp.zeros(model.body.mj_model.nv, dtype).at[0].set(cfg.v0)
+    qvel = jnp.zeros(model.body.mj_model.nv, dtype).at[0].set(v0)
     pts = model.points(qpos, jnp.zeros((), dtype))
-    _, jac = model.points_jacobian(qpos, jnp.zeros((), dtype))  # for the CoM velocity
+    _, jac = model.points_jacobian(qpos, jnp.zeros((), dtype))  # CoM and ankle velocities
 
     table = model.muscles
     legq_j = jnp.asarray(legq)
@@ -137,8 +165,8 @@ def initial_state(
         jnp.zeros(2, bool),
         pts,
         jac[7] @ qvel,
+        jac[4:6] @ qvel,
     )
-    ctrl = model.controller
     ctrl_state = ctrl.init(ctrl, sensors0, model.dt)
     law_state = None
     if command_law is not None:
@@ -280,7 +308,20 @@ def step(
     # 6. gait phases, the shared sensors, the command, then the controller
     gait, _, td, ds = update_gait(model.gait, s.gait, grf[:, 1], mg, s.t, s.qpos[2], dt)
     sensors = sensors_of(
-        model, s.t, f_mtu, s.muscle.l_ce, phi, dphi, s.qpos, s.qvel, gait, td, ds, pts, vel[7]
+        model,
+        s.t,
+        f_mtu,
+        s.muscle.l_ce,
+        phi,
+        dphi,
+        s.qpos,
+        s.qvel,
+        gait,
+        td,
+        ds,
+        pts,
+        vel[7],
+        vel[4:6],
     )
     command = scheduled_command(model, commands, s.t, dtype)
     law_state = s.command_state

@@ -1,0 +1,376 @@
+"""Wang et al. 2012: the 8-muscle leg, its controller (sections 4.1-4.3) and effort (5, 5.1)."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxgait import models, sim
+from jaxgait.body.joints import q_to_phi
+from jaxgait.control import wang as w
+from jaxgait.control.fbl import FBL
+from jaxgait.control.interface import Sensors
+from jaxgait.control.wang_params import INITIAL_SPECS, STANCE_SPECS, SWING_SPECS, WANG
+from jaxgait.muscles import effort as ef
+from jaxgait.muscles import energy as en
+from jaxgait.muscles import mtu
+from jaxgait.world import envs
+
+HFL, GLU, HAM, VAS, GAS, SOL, TA, RF = range(8)
+P0 = {k: float(v) for k, v in WANG.unpack(np.asarray(WANG.init)).items()}
+
+
+def _p(**kw):
+    return {k: jnp.asarray(v, jnp.float32) for k, v in {**P0, **kw}.items()}
+
+
+def _row(**kw):
+    """One sensor row (1, N_SENSORS): neutral values, then ``F``/``L`` (8,) and W_* columns."""
+    s = np.zeros(w.N_SENSORS)
+    s[w.W_F] = kw.pop("F", np.zeros(8))
+    s[w.W_L] = kw.pop("L", np.ones(8))
+    for k, v in kw.items():
+        s[getattr(w, "W_" + k.upper())] = v
+    return jnp.asarray(s[None], jnp.float32)
+
+
+# ------------------------------------------------------------------ table and model
+def test_table_has_wangs_56_law_parameters_plus_balance_and_initial_state():
+    assert (len(STANCE_SPECS), len(SWING_SPECS), WANG.size) == (30, 26, 66)
+    assert all(s.source for s in WANG.specs) and len(INITIAL_SPECS) == 8
+    # gains with a Geyer-Herr counterpart start from the same values as FBL's table
+    fbl = dict(zip(FBL.names, FBL.init, strict=True))
+    pairs = {
+        "GF_SOL": "G_SOL",
+        "GF_GAS": "G_GAS",
+        "GF_VAS": "G_VAS",
+        "GF_SOL_TA": "G_TA_SOL",
+        "GL_TA": "G_TA",
+        "HL_TA": "loff_TA",
+        "GL_HFL_sw": "G_HFL",
+        "HL_HFL_sw": "loff_HFL",
+        "GL_HAM_sw": "G_HAM_HFL",
+        "HL_HAM_sw": "loff_HAM",
+        "k_lean": "k_lean",
+        "K_HAM": "k_p1",
+        "K_GLU": "k_p2",
+        "D_HAM": "k_d",
+        "th_HFL": "theta_ref",
+        "p_VAS": "S0_VAS",
+        "p_HAM": "S0_HAM",
+        "s_GLU": "delta_S",
+        "k_knee": "k_phi",
+    }
+    for ours, theirs in pairs.items():
+        assert P0[ours] == pytest.approx(fbl[theirs], rel=1e-3), ours
+    assert P0["th_knee_off"] == pytest.approx(np.pi - fbl["phi_k_off"], abs=1e-4)
+
+
+def test_models_take_the_muscle_table_of_their_controller():
+    model = models.get_model("wang8")
+    assert model.muscles is mtu.WANG8 and model.controller.n_muscles == 8
+    assert models.get_model("fbl").muscles is mtu.GEYER7
+    assert models.get_model("fblplus").muscles is mtu.GEYER7
+    assert model.leg_length == pytest.approx(1.0) and model.table is WANG
+
+
+def test_rf_flexes_the_hip_and_extends_the_knee_in_the_joint_geometry():
+    model = models.get_model("wang8")
+    body, rf = model.body, mtu.WANG8.index("RF")
+    thigh, shank, foot = (body.mj_model.body(n).id for n in ("thigh_r", "shank_r", "foot_r"))
+    frames = jax.jit(body.frames)
+    length = jax.jit(jax.grad(lambda q: mtu.mtu_length(mtu.WANG8, q_to_phi(q))[rf]))
+    for q_leg in ([0.3, 0.4, 0.0], [-0.1, 0.05, 0.1], [0.8, 1.2, -0.2]):  # Winter hip, knee, ankle
+        q_leg = jnp.asarray(q_leg)
+        f = jnp.zeros(8).at[rf].set(1000.0)
+        tau_q = -np.asarray(mtu.joint_torques(mtu.WANG8, q_to_phi(q_leg), f))  # as the simulator
+        assert tau_q[0] > 0 and tau_q[1] < 0 and tau_q[2] == 0  # hip flexion, knee extension
+        # the MTU shortens in the directions it pulls (positive work)
+        dl = np.asarray(length(q_leg))
+        assert dl[0] < 0 and dl[1] > 0 and dl[2] == 0
+        # and in the MJCF, +q_hip swings the thigh forward (flexion), +q_knee swings the shank
+        # backward relative to the thigh (flexion): RF's torques extend the knee, flex the hip
+        qpos = jnp.zeros(9).at[3:6].set(q_leg)
+
+        def alpha(q, a, b):
+            return float(_forward_angle(frames(q)[0], a, b))
+
+        hip_up = alpha(qpos.at[3].add(1e-3), thigh, shank) - alpha(qpos, thigh, shank)
+        knee_up = alpha(qpos.at[4].add(1e-3), shank, foot) - alpha(qpos, shank, foot)
+        assert hip_up > 0 and knee_up < 0  # (the thigh does not move with q_knee)
+
+
+def _forward_angle(origins, a, b):
+    """Angle [rad] of the segment from body a's origin to body b's from the downward
+    vertical, forward (+x) positive."""
+    v = origins[b] - origins[a]
+    return jnp.arctan2(v[0], -v[1])
+
+
+# ------------------------------------------------------------------ building blocks
+def test_force_and_length_feedback_by_hand():
+    assert float(w.force_feedback(1.2, 0.5)) == pytest.approx(0.6)
+    assert float(w.length_feedback(1.1, 0.8, 0.72)) == pytest.approx(0.088)
+    assert float(w.length_feedback(1.1, 0.7, 0.72)) == 0.0
+
+
+def test_pd_sign_rule_for_extensors_and_flexors():
+    assert w.PD_SIGN_HIP.tolist() == [-1, 1, 1, 0, 0, 0, 0, -1]  # HFL, RF flex; GLU, HAM extend
+    assert w.PD_SIGN_KNEE.tolist() == [0, 0, -1, 1, -1, 0, 0, 1]  # VAS, RF extend the knee
+    # x = K (th - th_m) + D dth = 2 (0.3 - 0.1) + 0.5 * 0.2 = 0.5
+    assert float(w.pd_feedback(2.0, 0.5, 0.3, 0.2, 0.1, +1)) == pytest.approx(0.5)  # extensor
+    assert float(w.pd_feedback(2.0, 0.5, 0.3, 0.2, 0.1, -1)) == 0.0  # flexor silent
+    # x = 2 (0 - 0.1) + 0.5 (-0.2) = -0.3: the flexor pulls with |x|, the extensor is silent
+    assert float(w.pd_feedback(2.0, 0.5, 0.0, -0.2, 0.1, -1)) == pytest.approx(0.3)
+    assert float(w.pd_feedback(2.0, 0.5, 0.0, -0.2, 0.1, +1)) == 0.0
+    assert float(w.pd_feedback(2.0, 0.5, 0.0, -0.2, 0.1, 0)) == 0.0
+
+
+def test_knee_overextension_and_balance_target_by_hand():
+    assert float(w.knee_overextension(2.0, 0.1, -1.0, 0.1745)) == pytest.approx(-0.149)
+    assert float(w.knee_overextension(2.0, 0.1, +1.0, 0.1745)) == 0.0  # flexing again
+    assert float(w.knee_overextension(2.0, 0.3, -1.0, 0.1745)) == 0.0  # bent past the offset
+    assert float(w.balance_target(0.4, 0.5, 0.2, 0.2, 1.3)) == pytest.approx(0.4 + 0.1 + 0.26)
+
+
+def test_delay_groups_follow_section_4_1():
+    # 5 ms: muscles on the hip (HFL, GLU, HAM, RF); 10 ms: VAS; 20 ms: on the ankle
+    assert w.MUSCLE_DELAY_GROUP.tolist() == [0, 0, 0, 1, 2, 2, 2, 0]
+
+
+# ------------------------------------------------------------------ laws by hand
+_F = [0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.1, 0.25]
+_L = [0.9, 1.1, 1.0, 0.95, 1.0, 1.05, 0.8, 1.0]
+
+
+def test_stance_laws_by_hand():
+    s = _row(F=_F, L=_L, trunk=0.2, dtrunk=0.5, knee=0.1, dknee=-1.0)
+    u = np.asarray(w.stance_excitation(_p(), s, jnp.array([True]), jnp.array([False])))[0]
+    x_ham = 1.9099 * (0.2 - 0.1047) + 0.2 * 0.5  # trunk ahead of its target: extensors pull
+    x_glu = 0.7 * 1.9099 * (0.2 - 0.1047) + 0.7 * 0.2 * 0.5
+    want = [
+        0.05,
+        0.05 + x_glu,
+        0.05 + x_ham,
+        0.08 + 1.2 * 0.5 + 2.0 * (0.1 - 0.1745),
+        0.01 + 1.1 * 0.6,
+        0.01 + 1.2 * 0.7,
+        0.01 + 1.1 * (0.8 - 0.72) - 0.4 * 0.7,
+        0.01,
+    ]
+    np.testing.assert_allclose(u, want, rtol=1e-4, atol=1e-6)
+    # trunk behind its target and falling back: only HFL pulls
+    s_back = _row(F=_F, L=_L, trunk=-0.1, dtrunk=-0.5, knee=0.3)
+    u = np.asarray(w.stance_excitation(_p(), s_back, jnp.array([True]), jnp.array([False])))[0]
+    x_hfl = -(1.9099 * (-0.1 - 0.1047) + 0.2 * -0.5)
+    np.testing.assert_allclose(u[[HFL, GLU, HAM, VAS]], [0.05 + x_hfl, 0.05, 0.05, 0.68], rtol=1e-4)
+    # not the lead leg: no trunk PD; swing initiation adds -s_VAS, +s_RF, -s_GLU, +s_HFL
+    p = _p(s_RF=0.3)
+    lead = np.asarray(w.stance_excitation(p, s, jnp.array([True]), jnp.array([True])))[0]
+    trail = np.asarray(w.stance_excitation(p, s, jnp.array([False]), jnp.array([True])))[0]
+    np.testing.assert_allclose(trail[[HFL, GLU, HAM]], [0.05 + 0.25, 0.05 - 0.25, 0.05], rtol=1e-5)
+    base = np.asarray(w.stance_excitation(p, s, jnp.array([True]), jnp.array([False])))[0]
+    np.testing.assert_allclose(lead - base, [0.25, -0.25, 0, -0.6, 0, 0, 0, 0.3], atol=1e-6)
+
+
+def test_swing_laws_by_hand():
+    s = _row(F=_F, L=[0.9, 1.1, 1.0, 1.0, 1.0, 1.0, 0.8, 1.0], theta_to=0.15)
+    u = np.asarray(w.swing_excitation(_p(), s, jnp.array([False])))[0]
+    ham = 4.0 * (1.0 - 0.85)
+    want = [0.01 + 0.5 * (0.9 - 0.65) - ham + 1.1459 * (0.15 - 0.1047), 0.01 + 0.5 * (1.1 - 1.0),
+            0.01 + ham, 0.01, 0.01, 0.01, 0.01 + 1.1 * (0.8 - 0.72), 0.01]  # fmt: skip
+    np.testing.assert_allclose(u, want, rtol=1e-4, atol=1e-6)
+
+
+def test_stance_preparation_pd_and_simbicon_target_shift():
+    s = _row(L=[0.9, 1.1, 1.0, 1.0, 1.0, 1.0, 0.8, 1.0], hip=0.2, knee=0.3, dknee=0.5,
+             bal_d=0.2, bal_v=1.0)  # fmt: skip
+    sw = np.asarray(w.swing_excitation(_p(), s, jnp.array([False])))[0]
+    sp = np.asarray(w.swing_excitation(_p(), s, jnp.array([True])))[0]
+    # hip 0.2 rad short of the target 0.4: HFL flexes, GLU silent; VAS extends the bent knee
+    np.testing.assert_allclose(sp[HFL], 0.01 + 1.9099 * 0.2, rtol=1e-4)
+    assert sp[GLU] == pytest.approx(0.01)
+    np.testing.assert_allclose(sp[VAS], 0.01 + 1.9099 * (0.3 - 0.0873) + 0.2 * 0.5, rtol=1e-4)
+    keep = [HAM, GAS, SOL, TA, RF]
+    np.testing.assert_array_equal(sp[keep], sw[keep])
+    # SIMBICON: target 0.4 + 1.0 * 0.2 + 0.5 * 1.0 = 1.1 rad
+    sp = np.asarray(w.swing_excitation(_p(c_d=1.0, c_v=0.5), s, jnp.array([True])))[0]
+    np.testing.assert_allclose(sp[HFL], 0.01 + 1.9099 * 0.9, rtol=1e-4)
+    # a thigh past the target (and flexing further) brings GLU in, HFL out
+    s2 = _row(hip=0.6, dhip=1.0)
+    sp = np.asarray(w.swing_excitation(_p(), s2, jnp.array([True])))[0]
+    np.testing.assert_allclose(sp[[GLU, HFL]], [0.01 + 1.9099 * 0.2 + 0.2, 0.01], rtol=1e-4)
+
+
+def test_laws_are_jit_and_vmap_friendly():
+    vecs = jnp.asarray(np.stack([WANG.init, WANG.pack({"c_d": 1.0})]), jnp.float32)
+    rows = jnp.concatenate([_row(hip=0.1), _row(hip=0.1, dleg=0.7, contact=1)])
+    f = jax.jit(jax.vmap(lambda v: w.wang_excitation(WANG.unpack(v), rows,
+                                                     jnp.array([w.SP, w.SI]),
+                                                     jnp.array([False, True]))))  # fmt: skip
+    out = np.asarray(f(vecs))
+    assert out.shape == (2, 2, 8) and np.isfinite(out).all()
+
+
+# ------------------------------------------------------------------ the state machine
+def _run_phases(contact, ds, d, start):
+    ph, out = jnp.asarray(start, jnp.int32), []
+    for c, b, x in zip(contact, ds, d, strict=True):
+        ph = w.update_phase(ph, jnp.asarray(c, bool), jnp.asarray(b, bool), x, 0.5, -0.3)
+        out.append(int(ph))
+    return out
+
+
+def test_swing_initiation_by_distance_and_stance_preparation_by_distance():
+    contact = [1, 1, 1, 1, 0, 0, 0, 0, 1, 1]
+    d = [-0.2, 0.3, 0.6, 0.2, 0.3, -0.1, -0.4, 0.0, -0.3, 0.1]
+    got = _run_phases(contact, [0] * 10, d, w.STANCE)
+    S, I, W, P = w.STANCE, w.SI, w.SWING, w.SP
+    assert got == [S, S, I, I, W, W, P, P, S, S]  # SI and SP are latched
+
+
+def test_swing_initiation_by_double_stance_and_direct_transitions():
+    got = _run_phases([1, 1, 1, 0], [0, 1, 0, 0], [0.1, 0.2, 0.3, 0.4], w.STANCE)
+    assert got == [w.STANCE, w.SI, w.SI, w.SWING]
+    # lift-off straight from stance, touchdown straight from swing
+    assert _run_phases([0, 1], [0, 0], [0.0, 0.0], w.STANCE) == [w.SWING, w.STANCE]
+
+
+def _sensors(stance=(1.0, 0.0), ds=(0.0, 0.0), dleg=(0.0, 0.0), trunk=0.0, f_norm=None):
+    z2, z23 = jnp.zeros(2), jnp.zeros((2, 3))
+    f = jnp.zeros((2, 8)) if f_norm is None else jnp.asarray(f_norm, jnp.float32)
+    return Sensors(
+        t=jnp.zeros(()), f_mtu=f * 1000.0, f_norm=f, l_ce=jnp.ones((2, 8)) * 0.1,
+        l_norm=jnp.ones((2, 8)), phi=z23 + jnp.pi, dphi=z23, trunk=jnp.asarray(trunk),
+        dtrunk=jnp.zeros(()), load=jnp.asarray(stance), stance=jnp.asarray(stance) > 0.5,
+        touchdown=jnp.zeros(2, bool), double_support=jnp.asarray(ds) > 0.5,
+        theta_to=z2, com=z2, com_vel=z2, feet=jnp.zeros((4, 2)), dcom=z2,
+        ankle=jnp.zeros((2, 2)), ankle_vel=jnp.zeros((2, 2)), dleg=jnp.asarray(dleg),
+    )  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def stepper():
+    ctrl, dt = w.WANG_CONTROLLER, 0.0005
+    cmd = {"lean_offset": jnp.zeros(()), "hip_target_offset": jnp.zeros(())}
+    step = jax.jit(lambda st, sens: ctrl.step(ctrl, _p(), sens, st, cmd, dt))
+    return lambda sens: ctrl.init(ctrl, sens, dt), step
+
+
+def test_state_machine_sees_ground_contact_10_ms_late(stepper):
+    init, step = stepper
+    st = init(_sensors())
+    assert st.phase.tolist() == [w.STANCE, w.SWING]
+    phases = []
+    for k in range(60):  # the left leg lands at step 0 (double stance, right leg trailing)
+        if k < 30:
+            sens = _sensors(stance=(1.0, 1.0), ds=(1.0, 0.0))
+        else:  # the right leg lifts off; the CoM is 0.7 leg lengths ahead of its ankle
+            sens = _sensors(stance=(0.0, 1.0), dleg=(0.7, -0.1))
+        _, st = step(st, sens)
+        phases.append(st.phase.tolist())
+    # 10 ms = 20 steps of 0.5 ms: the touchdown and the double stance show at step 20
+    assert phases[19] == [w.STANCE, w.SWING] and phases[20] == [w.SI, w.STANCE]
+    assert phases[49] == [w.SI, w.STANCE] and phases[50] == [w.SWING, w.STANCE]
+    assert phases[59] == [w.SWING, w.STANCE]  # d = 0.7 > d_SP: no stance preparation
+
+
+def test_each_muscle_sees_its_own_delay(stepper):
+    init, step = stepper
+    st = init(_sensors())
+    moved = _sensors(trunk=0.3, f_norm=np.full((2, 8), 0.5))
+    out = []
+    for _ in range(45):
+        stim, st = step(st, moved)
+        out.append(np.asarray(stim)[0])
+    out = np.stack(out)
+    base = out[0]
+    changed = lambda m: int(np.argmax(np.abs(out[:, m] - base[m]) > 1e-6))
+    assert changed(HAM) == 10 and changed(VAS) == 20 and changed(SOL) == 40
+
+
+# ------------------------------------------------------------------ effort and return
+def _scone_wang2012(mass, ratio, u, a, l_norm, v, f, f_active):
+    """Per-muscle rate of SCONE's EffortMeasure::GetWang2012 (scone-core), written out."""
+    fa = 40 * ratio * math.sin(math.pi / 2 * u) + 133 * (1 - ratio) * (
+        1 - math.cos(math.pi / 2 * u)
+    )
+    fm = 74 * ratio * math.sin(math.pi / 2 * a) + 111 * (1 - ratio) * (
+        1 - math.cos(math.pi / 2 * a)
+    )
+    g = 0.5 if l_norm < 0.5 else l_norm if l_norm < 1 else -2 * l_norm + 3 if l_norm < 1.5 else 0
+    return mass * fa + mass * g * fm + max(0.0, 0.25 * f * -v) + max(0.0, f_active * -v)
+
+
+def test_metabolic_rate_matches_scone_wang2012_reference():
+    t = mtu.WANG8
+    u = np.array([0.05, 0.3, 0.6, 1.0, 0.2, 0.8, 0.01, 0.5])
+    a = np.array([0.1, 0.25, 0.5, 0.9, 0.3, 0.7, 0.02, 0.4])
+    ln = np.array([0.4, 0.7, 0.95, 1.1, 1.3, 1.6, 0.5, 1.0])
+    v = np.array([-0.3, 0.2, -1.0, 0.0, -0.05, 0.4, -0.2, -0.6])
+    f = np.array([500.0, 300.0, 1200.0, 4000.0, 800.0, 2500.0, 100.0, 600.0])
+    fa = 0.8 * f
+    got = np.asarray(ef.wang_metabolic_rate(t, u, a, ln * t.l_opt, v, fa, f))
+    mass = t.f_max / 0.25e6 * 1059.7 * t.l_opt
+    want = [_scone_wang2012(*x) for x in zip(mass, t.type1, u, a, ln, v, f, fa, strict=True)]
+    np.testing.assert_allclose(got, want, rtol=1e-5)
+
+
+def test_wang_and_thesis_rates_differ_only_in_g_below_optimal_length():
+    t = mtu.GEYER7
+    args = lambda ln: (np.full(7, 0.4), np.full(7, 0.5), ln * t.l_opt, np.full(7, -0.1),
+                       np.full(7, 300.0), np.full(7, 400.0))  # fmt: skip
+    np.testing.assert_allclose(ef.wang_length_factor(np.array([0.3, 0.75, 1.0, 1.25, 1.6])),
+                               [0.5, 0.75, 1.0, 0.5, 0.0])  # fmt: skip
+    for ln, ratio in ((0.75, 0.75), (1.25, 1.0)):
+        wang = ef.wang_metabolic_components(t, *args(ln))
+        thesis = en.metabolic_components(t, *args(ln))
+        np.testing.assert_allclose(wang["maintenance"], ratio * thesis["maintenance"], rtol=1e-6)
+        for k in ("activation", "shortening", "work"):
+            np.testing.assert_allclose(wang[k], thesis[k], rtol=1e-6)
+
+
+def test_effort_task_terms_and_return_on_a_hand_made_trajectory():
+    rate = jnp.array([[10.0, 20.0], [30.0, 40.0], [50.0, 60.0], [70.0, 80.0]])  # (T, muscles)
+    lim = jnp.array([[1.0, 0, 0], [0, 2.0, 0], [0, 0, 0], [3.0, 0, 0]])
+    e = ef.effort(rate, lim, body_mass=80.0)
+    assert float(e["J_M"]) == pytest.approx(120.8 + 90.0)  # basal 1.51 W/kg + mean of sums
+    assert float(e["J_L"]) == pytest.approx(3.5) and float(e["J_R"]) == 0.0
+    assert float(e["J"]) == pytest.approx(100 * 210.8 + 0.5 * 3.5)
+    t = jnp.array([0.0, 0.5, 1.0, 1.5])
+    vx, trunk = jnp.array([1.0, 1.2, 1.4, 1.0]), jnp.array([0.1, 0.0, -0.1, 0.2])
+    # no fall: trailing 1 s means 1.0, 1.1, 1.3, 1.2 against 1.3 m/s
+    k = ef.task_terms(t, vx, trunk, 1.3, dt=0.5)
+    assert float(k["speed"]) == pytest.approx(100 * 0.5 * (0.09 + 0.04 + 0 + 0.01))
+    assert float(k["upright"]) == pytest.approx(100 * 0.5 * (0.01 + 0 + 0.01 + 0.04))
+    assert float(k["fall"]) == 0.0 and float(k["total"]) == pytest.approx(10.0)
+    # a fall at 1.2 s: the last sample drops out, 8.8 s of the 10 s horizon are lost
+    k = ef.task_terms(t, vx, trunk, 1.3, dt=0.5, t_fall=1.2)
+    assert float(k["total"]) == pytest.approx(6.5 + 1.0 + 1000 * 8.8)
+    r = ef.wang_return(k, e, body_mass=80.0)
+    assert float(r["w_e"]) == pytest.approx(5e-5)
+    assert float(r["R"]) == pytest.approx(-(6.5 + 1.0 + 8800.0) - 5e-5 * 21081.75, rel=1e-6)
+    em = ef.effort(rate, lim, 80.0, mask=t < 1.2)  # effort over the samples before the fall
+    assert float(em["J"]) == pytest.approx(100 * (120.8 + 70.0) + 0.5 * 5.0 / 3.0)
+
+
+# ------------------------------------------------------------------ the model rolls out
+def test_wang8_model_rolls_out_with_eight_muscles():
+    model = models.get_model("wang8")
+    f = sim.make_rollout(model, sim.SimConfig(duration=0.5), batched=False)  # as test_controllers
+    env = envs.make_env("flat", jax.random.PRNGKey(0))
+    vec = np.asarray(WANG.init)
+    trace, _, summary, final = f(jnp.asarray(vec, jnp.float32), env)
+    assert np.asarray(trace.stim).shape[-2:] == (2, 8) and np.asarray(trace.act).shape[-1] == 8
+    for x in jax.tree.leaves(final):
+        assert np.isfinite(np.asarray(x, float)).all()
+    assert float(summary.duration) == pytest.approx(0.5) and not bool(summary.fell)
+    assert set(np.asarray(final.ctrl.phase).tolist()) <= {w.STANCE, w.SI, w.SWING, w.SP}
+    # the initial-state parameters move the start: +0.1 rad swing knee, +0.3 m/s
+    moved = WANG.pack({"init_knee_sw": 0.1, "init_dv": 0.3})
+    trace2, *_ = f(jnp.asarray(moved, jnp.float32), env)
+    q0, q1 = np.asarray(trace.qpos[0]), np.asarray(trace2.qpos[0])
+    assert q1[7] - q0[7] == pytest.approx(0.1, abs=0.03)  # knee_l after 10 ms
+    assert float(trace2.com_vel[0, 0] - trace.com_vel[0, 0]) == pytest.approx(0.3, abs=0.1)
