@@ -44,9 +44,7 @@ def test_speed_law_stays_in_the_declared_ranges(gains, v_target, v, integral, o_
     blo, bhi = bounds(cmds)
     vec = jnp.stack([out[c.name] for c in cmds])
     assert bool(jnp.all(vec >= blo)) and bool(jnp.all(vec <= bhi))
-    for c in cmds:  # the law moves only the offsets of the basal and CPG groups and the clock
-        if c.name not in ("O_INBAS", "O_INCPG", "omega"):
-            assert float(out[c.name]) == float(sched[c.name])
+    assert set(out) == set(sched)
 
 
 def test_grade_estimate_from_the_feet_at_touchdown():
@@ -70,6 +68,12 @@ def test_grade_estimate_from_the_feet_at_touchdown():
     assert float(out["omega"]) == pytest.approx(float(sched["omega"]) - 2.0 * g, abs=1e-6)
     assert float(out["O_INBAS"]) == pytest.approx(0.5 * g, abs=1e-6)
     assert float(out["O_INCPG"]) == pytest.approx(0.25 * g, abs=1e-6)
+    # the feedforward gains move their command by k (v* - v_ref), nothing else
+    p.update(k_sw=0.0, k_sb=0.0, k_sc=0.0, k_a_bas=0.5, v_ref=1.2)
+    out = speed_commands(p, 1.4, 1.4, 0.0, sched, cmds, 0.0)
+    for c in cmds:
+        want = float(sched[c.name]) + (0.5 * 0.2 if c.name == "A_INBAS" else 0.0)
+        assert float(out[c.name]) == pytest.approx(want, abs=1e-6), c.name
 
 
 def test_auto_preset_round_trip_and_fresh_state(tmp_path):

@@ -13,9 +13,12 @@ wraps a network controller, takes the target speed v* [m/s] as its command and e
 4. sets the basal offsets and the clock frequency (the slope rule: the thesis climbed by
    lowering omega and raising the basal offsets as the ground steepened, 7.3.1)
    O_INBAS = O_sched + k_ff (v* - v_ref) + k_p e + k_i I + k_sb g   [stim],
-   O_INCPG = O_sched + k_sc g                                       [stim],
+   O_INCPG = O_sched + k_o_cpg (v* - v_ref) + k_sc g                [stim],
    omega   = omega_sched + k_w (v* - v_ref) + k_sw g                [cycles/s],
-   each clipped to the range the network declares (:func:`jaxgait.control.spinal.control_commands`);
+   and every other command c of the network c = c_sched + k_c (v* - v_ref) (the feedforward
+   gains ``k_a_sen``, ``k_o_sen``, ``k_a_cpg``, ``k_a_bas``; 0 by default: a direction in C
+   along which the speed changes), each clipped to the range the network declares
+   (:func:`jaxgait.control.spinal.control_commands`);
    the feedforward term inverts the speed law of the systematic searches (thesis eq. 7.1:
    S = a1 O_INBAS + a2 omega + a3, so k_ff = 1 / a1 with k_w = 0);
 5. runs the network with that control vector (the other commands as scheduled).
@@ -40,6 +43,16 @@ from jaxgait.control.interface import Controller, Sensors
 from jaxgait.core.params import ParamSpec, ParamTable
 
 _L = "speed-law gain (automatic control)"
+_FF = "feedforward per m/s of (v* - v_ref) on "
+
+#: the feedforward gains on the other commands (step 4 of the module docstring)
+FEEDFORWARD = {
+    "A_INSEN": "k_a_sen",
+    "O_INSEN": "k_o_sen",
+    "A_INCPG": "k_a_cpg",
+    "O_INCPG": "k_o_cpg",
+    "A_INBAS": "k_a_bas",
+}
 
 #: Gains of the speed law (see the module docstring).
 AUTO_SPEED = ParamTable(
@@ -56,6 +69,11 @@ AUTO_SPEED = ParamTable(
         ParamSpec("k_sb", 0.0, -1.0, 1.0, "slope rule: O_INBAS per unit grade", "stim"),
         ParamSpec("k_sc", 0.0, -1.0, 1.0, "slope rule: O_INCPG per unit grade", "stim"),
         ParamSpec("k_sw", 0.0, -3.0, 3.0, "slope rule: omega per unit grade", "cycles/s"),
+        ParamSpec("k_a_sen", 0.0, -2.0, 2.0, _FF + "A_INSEN", "1/(m/s)"),
+        ParamSpec("k_o_sen", 0.0, -0.5, 0.5, _FF + "O_INSEN", "1/(m/s)"),
+        ParamSpec("k_a_cpg", 0.0, -2.0, 2.0, _FF + "A_INCPG", "1/(m/s)"),
+        ParamSpec("k_o_cpg", 0.0, -0.5, 0.5, _FF + "O_INCPG", "1/(m/s)"),
+        ParamSpec("k_a_bas", 0.0, -2.0, 2.0, _FF + "A_INBAS", "1/(m/s)"),
     ),
 )
 
@@ -104,8 +122,10 @@ def speed_commands(p: dict, v_target, v, integral, sched: dict, commands, grade=
     if "O_INBAS" in out:
         o = out["O_INBAS"] + p["k_ff"] * dv + p["k_p"] * e + p["k_i"] * integral
         out["O_INBAS"] = jnp.clip(o + p["k_sb"] * grade, *lim["O_INBAS"])
-    if "O_INCPG" in out:
-        out["O_INCPG"] = jnp.clip(out["O_INCPG"] + p["k_sc"] * grade, *lim["O_INCPG"])
+    for c, k in FEEDFORWARD.items():
+        if c in out:
+            slope = p["k_sc"] * grade if c == "O_INCPG" else 0.0
+            out[c] = jnp.clip(out[c] + p[k] * dv + slope, *lim[c])
     if "omega" in out:
         w = out["omega"] + p["k_w"] * dv + p["k_sw"] * grade
         out["omega"] = jnp.clip(w, *lim["omega"])

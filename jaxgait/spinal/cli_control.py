@@ -93,7 +93,16 @@ def cmd_tune(a) -> dict:
         "figure": str(fig),
     }
     rep["json"] = str(write_json(out, f"tuning_{a.name}.json", rep))
-    return {**rep, "presets": {"tuned": str(path)}}
+    summary = {
+        k: {m: v[m] for m in ("rms_mean_mps", "fitness", "slope_distance_m") if m in v}
+        for k, v in held_out.items()
+    }
+    return {
+        "json": rep["json"],
+        "figure": str(fig),
+        "held_out": summary,
+        "presets": {"tuned": str(path)},
+    }
 
 
 def cmd_range(a) -> dict:
