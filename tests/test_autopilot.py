@@ -12,7 +12,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from jaxgait import models, presets, sim
-from jaxgait.control.autopilot import AUTO_SPEED, grade_at_touchdown, speed_commands
+from jaxgait.control.autopilot import (
+    AUTO_SPEED,
+    grade_at_touchdown,
+    speed_commands,
+    target_speed,
+)
 from jaxgait.control.commands import bounds
 from jaxgait.spinal.auto import auto_preset
 from jaxgait.world import envs
@@ -74,6 +79,15 @@ def test_grade_estimate_from_the_feet_at_touchdown():
     for c in cmds:
         want = float(sched[c.name]) + (0.5 * 0.2 if c.name == "A_INBAS" else 0.0)
         assert float(out[c.name]) == pytest.approx(want, abs=1e-6), c.name
+
+
+def test_targets_are_limited_to_the_speeds_held():
+    p = {"v_min": 1.1, "v_max": 1.3}
+    got = [float(target_speed(p, v)) for v in (0.7, 1.1, 1.2, 1.3, 1.8)]
+    assert got == pytest.approx([1.1, 1.1, 1.2, 1.3, 1.3])
+    lo, hi = AUTO_SPEED.init[AUTO_SPEED.names.index("v_min")], AUTO_SPEED.init[-6]
+    assert AUTO_SPEED.names[-6] == "v_max"  # the defaults leave every declared target alone
+    assert (lo, hi) == (0.2, 3.0)
 
 
 def test_auto_preset_round_trip_and_fresh_state(tmp_path):

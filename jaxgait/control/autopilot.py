@@ -4,6 +4,8 @@ The thesis steered 3FBL's speed and slope by hand and left an automatic controll
 work (thesis 7.3, 8.2).  :func:`speed_controller` closes the loop inside the jitted step: it
 wraps a network controller, takes the target speed v* [m/s] as its command and every step
 
+0. limits the target to the speeds the model holds, v* <- clip(v*, v_min, v_max) (the
+   defaults 0.2 and 3 m/s leave it alone; a preset sets them from ``spinal range``);
 1. filters the forward centre-of-mass velocity, v' = (v_com - v) / tau_v -> v [m/s];
 2. integrates the error e = v* - v, I' = e, clamped to [-i_max, i_max] [m];
 3. estimates the ground grade g [-] (rise over run) at every touchdown from the two
@@ -69,6 +71,8 @@ AUTO_SPEED = ParamTable(
         ParamSpec("k_sb", 0.0, -1.0, 1.0, "slope rule: O_INBAS per unit grade", "stim"),
         ParamSpec("k_sc", 0.0, -1.0, 1.0, "slope rule: O_INCPG per unit grade", "stim"),
         ParamSpec("k_sw", 0.0, -3.0, 3.0, "slope rule: omega per unit grade", "cycles/s"),
+        ParamSpec("v_min", 0.2, 0.2, 3.0, "targets below are raised to this (speeds held)", "m/s"),
+        ParamSpec("v_max", 3.0, 0.2, 3.0, "targets above are lowered to this (speeds held)", "m/s"),
         ParamSpec("k_a_sen", 0.0, -2.0, 2.0, _FF + "A_INSEN", "1/(m/s)"),
         ParamSpec("k_o_sen", 0.0, -0.5, 0.5, _FF + "O_INSEN", "1/(m/s)"),
         ParamSpec("k_a_cpg", 0.0, -2.0, 2.0, _FF + "A_INCPG", "1/(m/s)"),
@@ -113,6 +117,11 @@ def grade_at_touchdown(feet, touchdown, grade, k_g):
     return grade
 
 
+def target_speed(p: dict, v_target):
+    """Step 0 of the module docstring: the target within the speeds the model holds."""
+    return jnp.clip(v_target, p["v_min"], p["v_max"])
+
+
 def speed_commands(p: dict, v_target, v, integral, sched: dict, commands, grade=0.0) -> dict:
     """The network's command dict from the law (step 4 of the module docstring)."""
     out = dict(sched)
@@ -145,11 +154,12 @@ def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: d
     inner = st.inner
     a = 1.0 - jnp.exp(-dt / p["tau_v"])
     v = s.v + a * (sens.com_vel[0] - s.v)
-    e = command["v_target"] - v
+    v_target = target_speed(p, command["v_target"])
+    e = v_target - v
     integral = jnp.clip(s.integral + dt * e, -p["i_max"], p["i_max"])
     grade = grade_at_touchdown(sens.feet, sens.touchdown, s.grade, p["k_g"])
     sched = {c.name: command[c.name] for c in inner.commands}
-    cmd = speed_commands(p, command["v_target"], v, integral, sched, inner.commands, grade)
+    cmd = speed_commands(p, v_target, v, integral, sched, inner.commands, grade)
     q = inner.table.unpack(jnp.asarray(st.inner_params, sens.f_norm.dtype))
     stim, inner_state = inner.step(inner, q, sens, s.inner, cmd, dt)
     return stim, AutoState(inner=inner_state, v=v, integral=integral, grade=grade)

@@ -64,7 +64,8 @@ def track(preset, profile, segment_s: float = 20.0, settle_s: float = 5.0, env=N
     x = np.asarray(tr.com, float)[:, 0]
     n = max(1, int(round(1.0 / cfg.log_dt)))
     v = np.full_like(t, np.nan)
-    v[n:] = (x[n:] - x[:-n]) / (t[n:] - t[:-n])
+    with np.errstate(invalid="ignore", divide="ignore"):  # rows after a fall repeat t
+        v[n:] = (x[n:] - x[:-n]) / (t[n:] - t[:-n])
     v[~alive] = np.nan
     target = np.asarray([profile[min(int(ti // segment_s), len(profile) - 1)] for ti in t])
     rms = []
@@ -72,7 +73,9 @@ def track(preset, profile, segment_s: float = 20.0, settle_s: float = 5.0, env=N
         w = (t >= k * segment_s + settle_s) & (t < (k + 1) * segment_s)
         ok = w & alive
         rms.append(
-            float(np.sqrt(np.mean((v[ok] - target[ok]) ** 2))) if ok.sum() == w.sum() else np.nan
+            float(np.sqrt(np.mean((v[ok] - target[ok]) ** 2)))
+            if 0 < ok.sum() == w.sum()
+            else np.nan
         )
     return {
         "model": name,
