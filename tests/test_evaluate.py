@@ -171,8 +171,8 @@ def test_preset_taga_pass_through_and_unknown_model(tmp_path):
     p = write_json(tmp_path / "t.json", {"model": "taga", "params": {"anything": [1, 2]}})
     model, vec, doc = presets.load_preset(p)
     assert model == "taga" and vec.size == 0 and doc["params"]["anything"] == [1, 2]
-    p = write_json(tmp_path / "x.json", {"model": "wang8", "params": {}})
-    with pytest.raises(presets.PresetError, match="wang8.*not available"):
+    p = write_json(tmp_path / "x.json", {"model": "no_such_model", "params": {}})
+    with pytest.raises(presets.PresetError, match="no_such_model.*not available"):
         presets.load_preset(p)
 
 
