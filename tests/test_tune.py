@@ -8,8 +8,9 @@ import jax
 import numpy as np
 import pytest
 
+from jaxgait.spinal.auto import moving_speed
 from jaxgait.spinal.record import SpinalError
-from jaxgait.spinal.tune import Tuning, moving_speed, random_profiles, tracking_cost
+from jaxgait.spinal.tune import Tuning, random_profiles, tracking_cost
 
 
 def _path(speed_of_t, total=20.0, dt=0.1):
@@ -21,7 +22,7 @@ def _path(speed_of_t, total=20.0, dt=0.1):
 
 def test_moving_speed_of_a_constant_speed_path():
     t, x = _path(lambda _: 1.2)
-    v = moving_speed(t, x)
+    v = moving_speed(t, x, 0.1)
     assert np.all(np.isnan(v[:10])) and np.allclose(v[10:], 1.2)
 
 

@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from jaxgait import models, sim
@@ -41,12 +43,31 @@ def auto_preset(network_preset, name: str, gains: dict | None = None) -> dict:
     }
 
 
+def profile_schedules(commands, profiles, segment_s: float):
+    """Batch of hold schedules of v_target, one per row of ``profiles`` (n, segments) [m/s],
+    each target held ``segment_s`` seconds."""
+    rows = [
+        schedule(commands, [(k * segment_s, {"v_target": float(v)}) for k, v in enumerate(p)])
+        for p in np.asarray(profiles)
+    ]
+    return jax.tree.map(lambda *a: jnp.stack(a), *rows)
+
+
+def moving_speed(t, x, log_dt: float, window_s: float = 1.0) -> np.ndarray:
+    """(..., T) backward moving-average speed over ``window_s`` [m/s] of a path x(t) logged
+    every ``log_dt`` seconds (NaN for the first window)."""
+    t, x = np.asarray(t, float), np.asarray(x, float)
+    n = max(1, int(round(window_s / log_dt)))
+    v = np.full(x.shape, np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):  # rows after a fall repeat t
+        v[..., n:] = (x[..., n:] - x[..., :-n]) / (t[..., n:] - t[..., :-n])
+    return v
+
+
 def track(preset, profile, segment_s: float = 20.0, settle_s: float = 5.0, env=None) -> dict:
     """Run ``preset`` (a model with a ``v_target`` command) through the target ``profile``
     [m/s], ``segment_s`` seconds each; returns time, speed (1 s moving average), target and
     the per-segment RMS error after ``settle_s`` (NaN after a fall)."""
-    import jax
-
     from jaxgait.world import envs
 
     name, vec, doc = load_preset(preset)
@@ -62,10 +83,7 @@ def track(preset, profile, segment_s: float = 20.0, settle_s: float = 5.0, env=N
     t = np.asarray(tr.t, float)
     alive = np.asarray(tr.alive, bool)
     x = np.asarray(tr.com, float)[:, 0]
-    n = max(1, int(round(1.0 / cfg.log_dt)))
-    v = np.full_like(t, np.nan)
-    with np.errstate(invalid="ignore", divide="ignore"):  # rows after a fall repeat t
-        v[n:] = (x[n:] - x[:-n]) / (t[n:] - t[:-n])
+    v = moving_speed(t, x, cfg.log_dt)
     v[~alive] = np.nan
     target = np.asarray([profile[min(int(ti // segment_s), len(profile) - 1)] for ti in t])
     rms = []
@@ -99,9 +117,6 @@ def speed_range(
     last ``measure_s`` seconds is within ``tol`` [m/s] of it.  Returns per target the mean
     speed and the flags, and the slowest and fastest held targets (and whether every
     target between them is held)."""
-    import jax
-    import jax.numpy as jnp
-
     from jaxgait.world import envs
 
     name, vec, doc = load_preset(preset)
@@ -111,8 +126,7 @@ def speed_range(
     if not 0 < measure_s <= duration_s:
         raise SpinalError(f"need 0 < measure_s <= duration_s, got {measure_s}, {duration_s}")
     targets = np.asarray(targets, float)
-    rows = [schedule(model.controller.commands, {"v_target": float(v)}) for v in targets]
-    sched = jax.tree.map(lambda *a: jnp.stack(a), *rows)
+    sched = profile_schedules(model.controller.commands, targets[:, None], duration_s)
     cfg = sim.SimConfig(duration=duration_s, log_dt=0.1, v0=float(doc.get("v0", sim.SimConfig.v0)))
     n = targets.size
     env = envs.make_env_batch("flat", jax.random.split(jax.random.PRNGKey(0), n))

@@ -43,7 +43,7 @@ from jaxgait.spinal.build import (
     select,
     select_walking,
 )
-from jaxgait.spinal.cli_control import add_parsers, label, write_json
+from jaxgait.spinal.cli_control import add_parsers, floats, label, write_json
 from jaxgait.spinal.record import SpinalError, analyse, record
 
 FILE_NAMES = {
@@ -240,14 +240,13 @@ def cmd_robust(a) -> dict:
 
 def _grid_arg(text: str) -> tuple[str, tuple[float, ...]]:
     """NAME:LO:HI:N (N evenly spaced values) or NAME=v1,v2,..."""
-    try:
-        if "=" in text:
-            name, vals = text.split("=", 1)
-            return name, tuple(float(v) for v in vals.split(","))
-        name, lo, hi, n = text.split(":")
-        return name, tuple(float(v) for v in np.linspace(float(lo), float(hi), int(n)))
-    except ValueError:
-        raise SpinalError(f"a grid axis is NAME:LO:HI:N or NAME=v1,v2,..., got {text!r}") from None
+    name, sep, rest = text.partition("=" if "=" in text else ":")
+    if sep and (sep == ":" or ":" not in rest):  # the comma form after "=" only
+        try:
+            return name, tuple(floats(rest, "a grid axis"))
+        except SpinalError:
+            pass
+    raise SpinalError(f"a grid axis is NAME:LO:HI:N or NAME=v1,v2,..., got {text!r}")
 
 
 def cmd_search(a) -> dict:

@@ -36,7 +36,7 @@ def write_json(out: Path, name: str, doc) -> Path:
     return p
 
 
-def _floats(text: str, flag: str) -> list[float]:
+def floats(text: str, flag: str) -> list[float]:
     """v1,v2,... or LO:HI:N."""
     try:
         if ":" in text:
@@ -51,7 +51,7 @@ def cmd_tune(a) -> dict:
     from jaxgait.spinal.figures import plot_tuning
     from jaxgait.spinal.tune import Tuning, evaluate_law, tune
 
-    vr = _floats(a.v_range, "--v-range")
+    vr = floats(a.v_range, "--v-range")
     if len(vr) != 2:
         raise SpinalError(f"--v-range takes LO,HI, got {a.v_range!r}")
     tcfg = Tuning(
@@ -109,7 +109,7 @@ def cmd_range(a) -> dict:
     from jaxgait.spinal.auto import speed_range
     from jaxgait.spinal.figures import plot_speed_range
 
-    targets = _floats(a.targets, "--targets")
+    targets = floats(a.targets, "--targets")
     results = {}
     for preset in a.presets:
         r = speed_range(preset, targets, a.duration, a.measure, a.tol)

@@ -139,25 +139,34 @@ def plot_models(path, runs: dict, n_cycles: int = 10) -> Path:
     return _save(fig, path)
 
 
-def plot_robustness(path, rows: dict[str, dict]) -> Path:
-    """Fig. 7.4: ``{label: {"c_angles": (mean, sd), "max_push_N": (mean, sd),
-    "max_slope_pct": (mean, sd)}}`` as three bar panels."""
-    fig = Figure(figsize=(11, 3.6), layout="constrained")
-    axes = fig.subplots(1, 3)
+def _bar_panels(path, rows: dict[str, dict], panels, suptitle: str, rotate=0) -> Path:
+    """One bar panel per (key, title) of ``panels``: ``rows[label][key] = (mean, sd)``."""
+    fig = Figure(figsize=(3.7 * len(panels), 3.6), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(panels)))
     labels = list(rows)
-    for ax, key, title in zip(
-        axes,
-        ("c_angles", "max_push_N", "max_slope_pct"),
-        ("joint-angle correlation C_angles", "max push [N]", "max slope change [%]"),
-        strict=True,
-    ):
+    for ax, (key, title) in zip(axes, panels, strict=True):
         mean = [rows[lab][key][0] for lab in labels]
         sd = [rows[lab][key][1] for lab in labels]
         ax.bar(labels, mean, yerr=sd, color=[COLORS[k % 6] for k in range(len(labels))], capsize=4)
         ax.set_title(title, fontsize=9)
         ax.grid(alpha=0.3, axis="y")
-    fig.suptitle("Robustness of the models, default control vector (thesis Fig. 7.4)", fontsize=10)
+        if rotate:
+            ax.tick_params(axis="x", labelsize=7, rotation=rotate)
+    fig.suptitle(suptitle, fontsize=10)
     return _save(fig, path)
+
+
+def plot_robustness(path, rows: dict[str, dict]) -> Path:
+    """Fig. 7.4: ``{label: {"c_angles": (mean, sd), "max_push_N": (mean, sd),
+    "max_slope_pct": (mean, sd)}}`` as three bar panels."""
+    panels = (
+        ("c_angles", "joint-angle correlation C_angles"),
+        ("max_push_N", "max push [N]"),
+        ("max_slope_pct", "max slope change [%]"),
+    )
+    return _bar_panels(
+        path, rows, panels, "Robustness of the models, default control vector (thesis Fig. 7.4)"
+    )
 
 
 def plot_search(path, res: dict, keys=None) -> Path:
@@ -229,23 +238,12 @@ def plot_speed_range(path, results: dict[str, dict]) -> Path:
 def plot_climb(path, rows: dict[str, dict]) -> Path:
     """Thesis Fig. 7.5: distance walked and steepest grade reached on the increasing slope,
     ``{label: {"distance_m": (mean, sd), "grade_pct": (mean, sd)}}``."""
-    fig = Figure(figsize=(9, 3.6), layout="constrained")
-    axes = fig.subplots(1, 2)
-    labels = list(rows)
-    for ax, key, title in zip(
-        axes,
-        ("distance_m", "grade_pct"),
-        ("distance on the increasing slope [m]", "steepest grade reached [%]"),
-        strict=True,
-    ):
-        mean = [rows[lab][key][0] for lab in labels]
-        sd = [rows[lab][key][1] for lab in labels]
-        ax.bar(labels, mean, yerr=sd, color=[COLORS[k % 6] for k in range(len(labels))], capsize=4)
-        ax.set_title(title, fontsize=9)
-        ax.grid(alpha=0.3, axis="y")
-        ax.tick_params(axis="x", labelsize=7, rotation=20)
-    fig.suptitle("Increasing slope, 0 -> 30 % over 160 m (thesis Fig. 7.5)", fontsize=10)
-    return _save(fig, path)
+    panels = (
+        ("distance_m", "distance on the increasing slope [m]"),
+        ("grade_pct", "steepest grade reached [%]"),
+    )
+    title = "Increasing slope, 0 -> 30 % over 160 m (thesis Fig. 7.5)"
+    return _bar_panels(path, rows, panels, title, rotate=20)
 
 
 def plot_tuning(path, history: list[dict]) -> Path:

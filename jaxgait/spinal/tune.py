@@ -32,9 +32,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxgait import models, sim
-from jaxgait.control.commands import schedule
 from jaxgait.optim import CMAES
 from jaxgait.presets import load_preset
+from jaxgait.spinal.auto import moving_speed, profile_schedules
 from jaxgait.spinal.record import SpinalError
 from jaxgait.world import envs
 
@@ -83,31 +83,12 @@ def random_profiles(key, n: int, tcfg: Tuning) -> np.ndarray:
     return np.asarray(jax.random.uniform(key, (n, tcfg.segments), minval=lo, maxval=hi), float)
 
 
-def profile_schedules(commands, profiles: np.ndarray, segment_s: float):
-    """Batch of hold schedules of v_target, one per row of ``profiles``."""
-    rows = [
-        schedule(commands, [(k * segment_s, {"v_target": float(v)}) for k, v in enumerate(p)])
-        for p in np.asarray(profiles)
-    ]
-    return jax.tree.map(lambda *a: jnp.stack(a), *rows)
-
-
-def moving_speed(t: np.ndarray, x: np.ndarray, window_s: float = 1.0) -> np.ndarray:
-    """(..., T) backward moving-average speed over ``window_s`` [m/s] (NaN before it)."""
-    dt = float(np.reshape(t, (-1, t.shape[-1]))[0, 1] - np.reshape(t, (-1, t.shape[-1]))[0, 0])
-    n = max(1, int(round(window_s / dt)))
-    v = np.full(x.shape, np.nan)
-    with np.errstate(invalid="ignore", divide="ignore"):  # rows after the end repeat t
-        v[..., n:] = (x[..., n:] - x[..., :-n]) / (t[..., n:] - t[..., :-n])
-    return v
-
-
 def tracking_cost(t, x, alive, profiles, tcfg: Tuning) -> tuple[np.ndarray, np.ndarray]:
     """Per rollout (cost [m/s], RMS error over the settled walked samples [m/s]).
 
     t, x, alive: (B, T) trace time, CoM x and alive flag; profiles: (B, segments)."""
     t = np.asarray(t, float)
-    v = moving_speed(t, np.asarray(x, float))
+    v = moving_speed(t, x, LOG_DT)
     alive = np.asarray(alive, bool)
     seg = np.minimum((t // tcfg.segment_s).astype(int), tcfg.segments - 1)
     target = np.take_along_axis(np.asarray(profiles, float), seg, axis=-1)
@@ -155,7 +136,7 @@ class Tasks:
             )
             scfg = envs.get_env_config("increasing_slope")
             self.slope_env = envs.make_env(scfg, jax.random.PRNGKey(0))
-            self.course_m = float(getattr(scfg, "length", 160.0))
+            self.course_m = float(scfg.length)
 
     def full(self, z: np.ndarray) -> np.ndarray:
         """(P, D) table vectors from (P, n_tuned) tuned values."""
@@ -211,7 +192,7 @@ def tune(preset, tcfg: Tuning = Tuning(), log=print) -> dict:
         key, ka, kp = jax.random.split(key, 3)
         profiles = random_profiles(kp, tcfg.profiles, tcfg)
         if g == 0:  # the starting gains first, as a baseline on the same kind of tasks
-            z = np.tile(z0, (2, 1))
+            z = z0[None]
         else:
             zj, state = opt.ask(ka, state)
             z = np.asarray(zj, float)
