@@ -22,9 +22,13 @@ LAYERS = {
     "models": 9,
     "presets": 10,
     "train": 11,
+    "evaluation": 12,
     "evaluate": 12,
     "robustness": 12,
+    "render": 12,
     "spinal": 13,
+    "cli": 14,
+    "__main__": 14,
 }
 
 

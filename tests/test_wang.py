@@ -374,3 +374,61 @@ def test_wang8_model_rolls_out_with_eight_muscles():
     q0, q1 = np.asarray(trace.qpos[0]), np.asarray(trace2.qpos[0])
     assert q1[7] - q0[7] == pytest.approx(0.1, abs=0.03)  # knee_l after 10 ms
     assert float(trace2.com_vel[0, 0] - trace.com_vel[0, 0]) == pytest.approx(0.3, abs=0.1)
+
+
+# ------------------------------------------- Wang's metabolic model inside the rollout
+def test_models_integrate_their_own_metabolic_model():
+    assert models.get_model("wang8").metabolic == "wang2012"
+    assert models.get_model("fbl").metabolic == "thesis"
+    with pytest.raises(ValueError, match="unknown metabolic model 'bhargava'"):
+        sim.model.planar_model(w.WANG_CONTROLLER, metabolic="bhargava")
+
+
+def test_rollout_energy_follows_the_chosen_metabolic_model():
+    """The same wang8 rollout with the thesis's and with Wang's rate: the motion is the same,
+    the energies differ; the soft-limit integral is recorded, and the effort measures are
+    J_M = 1.51 W/kg m + E/T and J = 100 J_M + 0.5 J_L."""
+    from jaxgait.analysis.measures import compute_measures
+
+    env = envs.make_env("flat", jax.random.PRNGKey(0))
+    vec = jnp.asarray(WANG.init, jnp.float32)
+    cfg = sim.SimConfig(duration=0.3)
+    out = {}
+    for kind in ("wang2012", "thesis"):
+        model = sim.model.planar_model(w.WANG_CONTROLLER, metabolic=kind)
+        out[kind] = sim.make_rollout(model, cfg, batched=False)(vec, env)
+    (tw, ew, sw, _), (tt, _, st, _) = out["wang2012"], out["thesis"]
+    np.testing.assert_array_equal(np.asarray(tw.qpos), np.asarray(tt.qpos))
+    assert float(sw.energy) > 0 and float(st.energy) > 0
+    assert abs(float(sw.energy) / float(st.energy) - 1.0) > 0.01
+    assert float(sw.limit_torque_sq) >= 0.0
+    m = jax.tree.map(np.asarray, compute_measures(tw, ew, sw))
+    T, mass = float(sw.duration), float(sw.mass)
+    j_m = 1.51 * mass + float(sw.energy) / T
+    assert float(m["effort_J_M_W"]) == pytest.approx(j_m, rel=1e-5)
+    assert float(m["effort_J_L"]) == pytest.approx(float(sw.limit_torque_sq) / T, rel=1e-5)
+    assert float(m["effort"]) == pytest.approx(100 * j_m + 0.5 * float(m["effort_J_L"]), rel=1e-5)
+
+
+def test_effort_criterion_is_wangs_weighted_term():
+    from jaxgait.train.objective import criterion_value
+
+    m = {"effort": jnp.asarray(40000.0), "mass_kg": jnp.asarray(80.0)}
+    assert float(criterion_value("effort", m, {})) == pytest.approx(-0.004 * 40000.0 / 80.0)
+
+
+def test_standard_score_of_table_1_by_hand():
+    """Wang's Table 1 score: Winter's mean scores 0, the mean shifted by one SD scores 1 at
+    every joint, a shift by 2 SD at the knee only scores (0, 2, 0) and 2/3 on average."""
+    from jaxgait.analysis import refdata
+    from jaxgait.analysis.measures import standard_scores
+
+    ref = refdata.winter_walking_kinematics()
+    mean = np.asarray(ref.mean_deg)
+    sd = np.stack([ref.hip_sd_deg, ref.knee_sd_deg, ref.ankle_sd_deg], -1)
+    np.testing.assert_allclose(np.asarray(standard_scores(mean, ref)), 0.0, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(standard_scores(mean - sd, ref)), 1.0, rtol=1e-5)
+    knee = mean + np.array([0.0, 2.0, 0.0]) * sd
+    z = np.asarray(standard_scores(knee, ref))
+    np.testing.assert_allclose(z, [0.0, 2.0, 0.0], atol=1e-5)
+    assert float(z.mean()) == pytest.approx(2.0 / 3.0, rel=1e-5)

@@ -22,6 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxgait.analysis import refdata
+from jaxgait.muscles import energy as energy_mod
 from jaxgait.sim.trace import Events, Summary, Trace
 
 #: Gravitational acceleration used for body weights and the dimensionless cost [m/s^2].
@@ -37,6 +38,8 @@ MEAN_FLOOR = 1e-6
 SNR_UNDEFINED = -20.0
 #: Correlation reported when the trace holds no full gait cycle.
 CORR_UNDEFINED = 0.0
+#: Standard score without a full cycle (a finite sentinel far above any real score).
+SCORE_UNDEFINED = 99.0
 _TINY = 1e-9
 
 #: Every key returned by :func:`compute_measures` and its unit ("-" dimensionless,
@@ -68,12 +71,20 @@ MEASURE_UNITS: dict[str, str] = {
     "energy_J_per_m": "J/m",
     "cost_of_transport": "J/(kg m)",
     "cost_of_transport_dimless": "-",
+    "metabolic_power_W": "W",
+    "effort_J_M_W": "W",
+    "effort_J_L": "N^2 m^2",
+    "effort": "-",
     "mean_trunk_lean_rad": "rad",
     "mean_trunk_lean_trace_rad": "rad",
     "corr_hip": "-",
     "corr_knee": "-",
     "corr_ankle": "-",
     "c_angles": "-",
+    "standard_score_hip": "-",
+    "standard_score_knee": "-",
+    "standard_score_ankle": "-",
+    "standard_score": "-",
     "cycle_valid": "bool",
     "cycle_angles_deg": "deg, shape (N, 3)",
     "cycle_start_s": "s",
@@ -278,6 +289,22 @@ def pearson(x: jax.Array, y: jax.Array) -> jax.Array:
     return jnp.clip(r, -1.0, 1.0)
 
 
+def standard_scores(curves_deg, reference: refdata.Kinematics) -> jax.Array:
+    """Wang et al. 2012 Table 1's standard score per joint: the mean over the cycle's samples
+    of |model - human mean| / human SD, (..., 3) for (hip, knee, ankle).
+
+    ``curves_deg`` (..., N, 3) [deg] sampled at ``reference.gait_cycle_pct`` (N = 51 for
+    Winter's walking data at 2 % steps, Wang uses 100 points of the same curves: the mean of a
+    smooth curve's deviation differs little).  A score of 1 means one SD off on average.
+    """
+    mean = jnp.asarray(reference.mean_deg, jnp.asarray(curves_deg).dtype)
+    sd = jnp.stack(
+        [jnp.asarray(getattr(reference, f"{j}_sd_deg"), mean.dtype) for j in ("hip", "knee", "ankle")],
+        -1,
+    )
+    return jnp.mean(jnp.abs(jnp.asarray(curves_deg) - mean) / sd, axis=-2)
+
+
 def joint_angle_correlations(
     trace: Trace,
     events: Events,
@@ -298,7 +325,8 @@ def joint_angle_correlations(
 
     Returns:
       ``corr_hip``, ``corr_knee``, ``corr_ankle`` (Pearson, in [-1, 1]), ``c_angles`` = their
-      minimum (eq. 2.51), ``cycle_valid`` (bool), ``cycle_angles_deg`` (N, 3) the resampled
+      minimum (eq. 2.51), ``standard_score_hip``, ``_knee``, ``_ankle`` and their mean
+    ``standard_score`` (:func:`standard_scores`; :data:`SCORE_UNDEFINED` without a full cycle), ``cycle_valid`` (bool), ``cycle_angles_deg`` (N, 3) the resampled
       model angles [deg], ``cycle_start_s``, ``cycle_end_s`` [s]. Without a full cycle the
       correlations and ``c_angles`` are :data:`CORR_UNDEFINED` (0).
     """
@@ -309,7 +337,13 @@ def joint_angle_correlations(
     human = jnp.asarray(ref.mean_deg, dtype=model.dtype)
     r = jnp.where(valid[0], pearson(model, human), CORR_UNDEFINED)
     times, _ = last_touchdowns(events, leg, 2)
+    z = standard_scores(model, ref)
+    z = jnp.where(valid[0], z, SCORE_UNDEFINED)
     return {
+        "standard_score_hip": z[0],
+        "standard_score_knee": z[1],
+        "standard_score_ankle": z[2],
+        "standard_score": jnp.mean(z),
         "corr_hip": r[0],
         "corr_knee": r[1],
         "corr_ankle": r[2],
@@ -370,6 +404,12 @@ def compute_measures(
       * ``energy_J_per_m`` [J/m]: energy / distance (distance floored at 1 mm).
       * ``cost_of_transport`` [J/(kg m)]: energy / (mass distance).
       * ``cost_of_transport_dimless`` [-]: energy / (mass g distance), g = 9.81 m/s^2.
+      * ``metabolic_power_W`` [W]: energy / duration, the mean metabolic power of the muscles
+        (the rollout's metabolic model, :attr:`jaxgait.sim.model.Model.metabolic`).
+      * ``effort_J_M_W`` [W], ``effort_J_L`` [N^2 m^2], ``effort`` [-]: Wang et al. 2012
+        section 5.1: J_M = 1.51 W/kg x mass + metabolic power, J_L the mean summed squared
+        soft-limit torque, and J_effort = 100 J_M + 0.5 J_L (J_R = 0 in the planar model),
+        :func:`jaxgait.muscles.energy.wang_effort` over the rollout.
       * ``mean_trunk_lean_rad`` [rad]: ``trunk_lean_sum / duration`` (forward lean +).
       * ``mean_trunk_lean_trace_rad`` [rad]: mean of ``qpos[:, 2]`` over alive samples.
       * ``c_angles``, ``corr_hip``, ``corr_knee``, ``corr_ankle`` [-], ``cycle_valid``,
@@ -423,6 +463,12 @@ def _compute_measures(trace, events, summary, reference, skip):
     n_alive = jnp.sum(alive.astype(jnp.int32))
     lean_trace = jnp.sum(jnp.where(alive, trace.qpos[:, 2], 0.0)) / jnp.maximum(n_alive, 1)
 
+    # Wang's effort terms from the rollout's integrals (section 5.1; J_R = 0 here)
+    w_m, _, w_l = energy_mod.WANG_WEIGHTS
+    power = jnp.where(duration > 0, energy / dur, 0.0)
+    j_m = energy_mod.basal_rate(mass) + power
+    j_l = jnp.where(duration > 0, jnp.asarray(summary.limit_torque_sq, f) / dur, 0.0)
+
     out = {
         "distance_m": distance,
         "duration_s": duration,
@@ -445,6 +491,10 @@ def _compute_measures(trace, events, summary, reference, skip):
         "energy_J_per_m": energy / dist,
         "cost_of_transport": energy / (jnp.maximum(mass, _TINY) * dist),
         "cost_of_transport_dimless": energy / (jnp.maximum(mass, _TINY) * G * dist),
+        "metabolic_power_W": power,
+        "effort_J_M_W": j_m,
+        "effort_J_L": j_l,
+        "effort": w_m * j_m + w_l * j_l,
         "mean_trunk_lean_rad": jnp.where(duration > 0, summary.trunk_lean_sum.astype(f) / dur, 0.0),
         "mean_trunk_lean_trace_rad": lean_trace.astype(f),
     }

@@ -53,6 +53,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxgait.core.limits import LimitError, check_duration
 from jaxgait.world import envs as envs_mod
 from jaxgait.world.terrain import increasing_slope_grade, wavy_angles
 
@@ -120,6 +121,14 @@ class RobustnessConfig:
         need(self.duration > 0, f"duration={self.duration} (> 0 s)")
         need(0 <= self.wavy_alpha_max < math.pi / 2, f"wavy_alpha_max={self.wavy_alpha_max}")
         need(self.slope_jitter >= 0, f"slope_jitter={self.slope_jitter} (>= 0 N)")
+        try:
+            check_duration(self.duration, what="duration of the slope walks")
+            check_duration(
+                self.push_t_max + self.push_max_duration + self.after_push,
+                what="push trial (push window end + push duration + after_push)",
+            )
+        except LimitError as e:
+            raise ValueError(f"invalid robustness setting: {e}") from None
 
     def keys(self, measure: str) -> jax.Array:
         """(N, 2) PRNG keys of one measure (``push``, ``wavy`` or ``slope``)."""

@@ -77,6 +77,10 @@ class SimConfig:
                 raise ValueError(f"SimConfig.{name} must be an integer >= {lo}, got {v!r}")
 
 
+#: Metabolic-rate models a rollout can integrate (:attr:`Model.metabolic`).
+METABOLIC_MODELS = ("thesis", "wang2012")
+
+
 #: Initial postures, Winter convention in degrees: (trunk pitch, (hip, knee, ankle) of the
 #: stance leg (right), (hip, knee, ankle) of the swing leg (left)).  "geyer" is Geyer's
 #: nms_model_ControlInit start (GH angles stance 85/175/175, swing 90/175/140 with the
@@ -100,6 +104,7 @@ class SimState:
     command_state: Any  # the command law's state (None without a law)
     energy: jax.Array
     lean_sum: jax.Array
+    limit_sq: jax.Array  # time integral of the summed squared soft-limit torques [N^2 m^2 s]
     x0: jax.Array
     done: jax.Array
     fell: jax.Array
@@ -107,6 +112,7 @@ class SimState:
     end_x: jax.Array
     end_energy: jax.Array
     end_lean: jax.Array
+    end_limit_sq: jax.Array
     events: Events
     grf: jax.Array  # (2, 2) last ground force per leg (x, z) [N], for logging
     stim: jax.Array  # (2, M) last stimulation, for logging
@@ -124,8 +130,17 @@ class Model:
     limits: SoftLimits = field(default_factory=SoftLimits)
     gait: GaitConfig = field(default_factory=GaitConfig)
     name: str = "fbl"
+    #: The metabolic-rate model integrated into the rollout's energy: ``"thesis"`` (thesis
+    #: eq. 2.41-2.44, :func:`jaxgait.muscles.energy.metabolic_rate`) or ``"wang2012"``
+    #: (Wang et al. 2012 section 5.1, :func:`jaxgait.muscles.effort.wang_metabolic_rate`).
+    metabolic: str = "thesis"
 
     def __post_init__(self):
+        if self.metabolic not in METABOLIC_MODELS:
+            raise ValueError(
+                f"model {self.name!r}: unknown metabolic model {self.metabolic!r}; "
+                f"valid: {', '.join(METABOLIC_MODELS)}"
+            )
         n = len(self.muscles.names)
         if self.controller.n_muscles != n:
             raise ValueError(
@@ -272,12 +287,15 @@ def planar_model(
     timestep: float | None = None,
     name: str | None = None,
     muscles: MuscleTable | None = None,
+    metabolic: str | None = None,
 ) -> Model:
     """``controller`` on the planar Geyer body (``models/fbl_planar.xml``).
 
     ``muscles`` defaults to the table of the controller's muscle count
     (:data:`MUSCLE_TABLES`: 7 -> GEYER7, 8 -> WANG8).  ``timestep`` [s] overrides the MJCF's
-    physics step (delays must stay whole steps).
+    physics step (delays must stay whole steps).  ``metabolic`` (:attr:`Model.metabolic`)
+    defaults to Wang's model for the 8-muscle table (Wang's controller is optimised on his
+    effort) and to the thesis's for the others.
     """
     if muscles is None:
         if controller.n_muscles not in MUSCLE_TABLES:
@@ -287,5 +305,13 @@ def planar_model(
                 f"{sorted(MUSCLE_TABLES)}); pass muscles=<MuscleTable>"
             )
         muscles = MUSCLE_TABLES[controller.n_muscles]
+    if metabolic is None:
+        metabolic = "wang2012" if muscles is mus.WANG8 else "thesis"
     body = load_body("fbl_planar", timestep)
-    return Model(body=body, muscles=muscles, controller=controller, name=name or controller.name)
+    return Model(
+        body=body,
+        muscles=muscles,
+        controller=controller,
+        name=name or controller.name,
+        metabolic=metabolic,
+    )

@@ -89,6 +89,7 @@ def summary_of(model: Model, s: SimState) -> Summary:
         energy=jnp.where(s.done, s.end_energy, s.energy),
         trunk_lean_sum=jnp.where(s.done, s.end_lean, s.lean_sum),
         mass=jnp.asarray(model.mass, s.t.dtype),
+        limit_torque_sq=jnp.where(s.done, s.end_limit_sq, s.limit_sq),
     )
 
 

@@ -29,6 +29,7 @@ from jaxgait.control.commands import CommandLaw, Schedule
 from jaxgait.control.gait import init_gait, update_gait
 from jaxgait.control.interface import Sensors
 from jaxgait.core.linalg import spd_solve
+from jaxgait.muscles import effort as effort_mod
 from jaxgait.muscles import energy as energy_mod
 from jaxgait.muscles import mtu as mus
 from jaxgait.sim.model import POSES, Model, SimConfig, SimState
@@ -192,6 +193,7 @@ def initial_state(
         command_state=law_state,
         energy=zero,
         lean_sum=zero,
+        limit_sq=zero,
         x0=pts[7, 0],
         done=jnp.zeros((), bool),
         fell=jnp.zeros((), bool),
@@ -199,6 +201,7 @@ def initial_state(
         end_x=pts[7, 0],
         end_energy=zero,
         end_lean=zero,
+        end_limit_sq=zero,
         events=events,
         grf=jnp.zeros((2, 2), dtype),
         stim=jnp.full((2, len(table.names)), 0.01, dtype),
@@ -342,7 +345,12 @@ def step(
     mstate, info = mus.muscle_step(
         table, s.muscle, stim, l_mtu_end, dt, cfg.muscle_substeps, solve_iters=cfg.ce_solve_iters
     )
-    rate = energy_mod.metabolic_rate(
+    rate_fn = (
+        effort_mod.wang_metabolic_rate
+        if model.metabolic == "wang2012"
+        else energy_mod.metabolic_rate
+    )
+    rate = rate_fn(
         table, info["stim"], info["act"], info["l_ce"], info["v_ce"], info["f_ce"], info["f_mtu"]
     ).sum()
 
@@ -350,6 +358,7 @@ def step(
     t = (jnp.round(s.t / dt) + 1.0) * dt
     energy = s.energy + rate * dt
     lean_sum = s.lean_sum + s.qpos[2] * dt
+    limit_sq = s.limit_sq + jnp.sum(jnp.square(f_lim)) * dt  # Wang's J_L integrand
     events = _record_touchdowns(s.events, td & ~s.done, s.t, pts[4:6, 0])
 
     # 9. fall and stopping criteria; the summary freezes at the first "done"
@@ -372,6 +381,7 @@ def step(
         command_state=law_state,
         energy=energy,
         lean_sum=lean_sum,
+        limit_sq=limit_sq,
         x0=s.x0,
         done=s.done | done_now,
         fell=s.fell | (done_now & fell_now),
@@ -379,6 +389,7 @@ def step(
         end_x=freeze(pts[7, 0], s.end_x),
         end_energy=freeze(energy, s.end_energy),
         end_lean=freeze(lean_sum, s.end_lean),
+        end_limit_sq=freeze(limit_sq, s.end_limit_sq),
         events=events,
         grf=grf,
         stim=stim,

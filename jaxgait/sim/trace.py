@@ -80,6 +80,8 @@ class Summary:
       energy: () metabolic energy spent [J].
       trunk_lean_sum: () time integral of trunk pitch [rad s] (mean lean = sum / duration).
       mass: () body mass [kg].
+      limit_torque_sq: () time integral of the summed squared soft-limit torques of the six
+        leg joints [N^2 m^2 s] (Wang's J_L = this / duration).
     """
 
     duration: jax.Array
@@ -88,3 +90,4 @@ class Summary:
     energy: jax.Array
     trunk_lean_sum: jax.Array
     mass: jax.Array
+    limit_torque_sq: jax.Array = 0.0

@@ -34,6 +34,7 @@ __all__ = [
     "load_preset",
     "params_from_dict",
     "push_on",
+    "run_preset",
     "simulate",
     "terrain_for",
     "window_measures",
@@ -98,16 +99,21 @@ def evaluate_preset(
       values over the second half of the walk, or of the part before a fall), plus
       preset, u0, env, slope.
     """
+    return run_preset(preset, duration, env, slope)[0]
+
+
+def run_preset(preset: str | dict, duration: float, env: str = "flat", slope: float = 0.0):
+    """:func:`evaluate_preset` with the rollout: ``(measures, final state, log, terrain)``
+    (the :class:`~jaxgait.taga.sim.Log` has one row every 10 ms)."""
     d = load_preset(preset)
     params = params_from_dict(d.get("params"))
     opts = dict(d.get("options", {}))
     dt = d.get("dt", opts.pop("dt", None))
     sim = default_sim(dt, **opts)
     cap = max(64, int(duration * 6) + 16)
-    state, log = simulate(
-        params, duration, terrain_for(env, slope), sim=sim, state=sim.init(event_capacity=cap)
-    )
+    terrain = terrain_for(env, slope)
+    state, log = simulate(params, duration, terrain, sim=sim, state=sim.init(event_capacity=cap))
     out = gait_measures(log, state.events, state)
     name = preset if isinstance(preset, str) else d.get("name", "custom")
     out.update(preset=name, u0=float(params.u0), env=env, slope=float(slope), model="taga")
-    return out
+    return out, state, log, terrain

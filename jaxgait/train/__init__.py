@@ -11,7 +11,7 @@ Command line (a thin layer over :func:`train`)::
     python -m jaxgait.train                      # list the experiments
     python -m jaxgait.train exp7a [--particles N] [--iterations N] [--seed S] [--out DIR]
         [--resume] [--duration S] [--d-lim M] [--worst-of K] [--lanes L] [--seeds N]
-        [--set key=value ...] [--no-plots]
+        [--set key=value ...] [--no-plots] [--no-video]
 
 Only flags actually given override the experiment (:mod:`jaxgait.train.experiments`). ``--set``
 takes any experiment field, values as JSON (``--set init=null``, ``--set targets.v_desired=1.5``,
@@ -34,9 +34,15 @@ Results folder (``out_dir``, default ``runs/<experiment>``):
   stage, rollouts/s), rewritten after every iteration;
 * ``best.json`` (a preset: ``python -m jaxgait.evaluate runs/exp3``) and ``best_params.txt``
   (readable table), rewritten whenever the best improves;
-* at the end: ``measures.json`` (the best re-evaluated on the experiment environment) and
+* at the end: ``measures.json`` (the best re-evaluated on the experiment environment),
   ``plots/`` (joint angles vs Winter, GRF, activations vs EMG, stick figure and, for stage
-  objectives, ``stage_progress.png``).
+  objectives, ``stage_progress.png``) and ``best.mp4`` (the last seconds of the best's walk,
+  :func:`~jaxgait.train.results.best_video`).
+
+``--resume`` with a different ``--iterations`` (only) extends a finished run or shortens an
+unfinished one (down to the iterations done); the result is that of one run of the new
+length.  Progress goes to a :class:`~jaxgait.train.progress.Progress`: a live bar on a
+terminal, plain lines otherwise.
 
 Modules: :mod:`~jaxgait.train.experiments` (the registry), :mod:`~jaxgait.train.objective`
 (fitness and stages), :mod:`~jaxgait.train.setup` (config document, model, start),

@@ -17,7 +17,9 @@ Guarantees:
   raises with the same meaning) is reported through ``warn`` and leaves the previous checkpoint
   in place; training goes on.
 * :meth:`RunCheckpoints.restore` checks the saved config against the current one and raises
-  :class:`CheckpointMismatchError` naming both experiments (or the differing fields). A step
+  :class:`CheckpointMismatchError` naming both experiments (or the differing fields), unless
+  its ``accept`` callback takes the saved config (``train`` accepts a different number of
+  iterations: :func:`iterations_only_difference`). A step
   that cannot be read (corrupt, truncated) is reported and the previous readable step is used;
   if none is readable, :class:`CheckpointError` lists every step tried and why.
 """
@@ -63,6 +65,22 @@ def config_differences(saved: Mapping, current: Mapping, prefix: str = "") -> li
         elif a != b:
             out.append(f"{prefix}{k}: {a!r} -> {b!r}")
     return out
+
+
+def iterations_only_difference(saved: Mapping, current: Mapping) -> int | None:
+    """The saved ``experiment.iterations`` if the two config documents differ in that field
+    only, else None (identical documents, or any other difference)."""
+    a, b = saved.get("experiment"), current.get("experiment")
+    if not (isinstance(a, Mapping) and isinstance(b, Mapping)):
+        return None
+    n = a.get("iterations")
+    if isinstance(n, bool) or not isinstance(n, int) or n == b.get("iterations"):
+        return None
+    rest = lambda doc, exp: {
+        **doc,
+        "experiment": {k: v for k, v in exp.items() if k != "iterations"},
+    }
+    return n if rest(saved, a) == rest(current, b) else None
 
 
 def _label(cfg: Mapping) -> str:
@@ -186,12 +204,18 @@ class RunCheckpoints:
             + ". Resume with the same settings, or use another output folder."
         )
 
-    def restore(self, abstract_state: Any) -> tuple[int, Any] | None:
+    def restore(
+        self, abstract_state: Any, accept: Callable[[Mapping], Any] | None = None
+    ) -> tuple[int, Any] | None:
         """``(step, state)`` of the newest readable step, or None if there are no steps.
 
         Args:
           abstract_state: a pytree of ``jax.ShapeDtypeStruct`` (e.g. ``jax.eval_shape`` of the
             initial state) with the structure of the saved state.
+          accept: optional ``saved config -> abstract state or None``, asked about a step whose
+            config differs from this run's: an abstract state (the saved state's structure)
+            restores the step anyway, None refuses it as a mismatch.  ``train`` accepts a
+            run that differs in its number of iterations only.
 
         Raises:
           CheckpointMismatchError: the newest readable step was written by another config.
@@ -211,11 +235,15 @@ class RunCheckpoints:
                     "trying the previous one"
                 )
                 continue
-            self.check_config(saved)
+            abstract = abstract_state
+            if saved != self.config:
+                abstract = accept(saved) if accept is not None else None
+                if abstract is None:
+                    self.check_config(saved)  # the configs differ: raises, naming them
             try:
                 out = self._manager.restore(
                     step,
-                    args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract_state)),
+                    args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract)),
                 )
                 state = out.state
                 jax.block_until_ready(state)

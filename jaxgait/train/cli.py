@@ -21,6 +21,7 @@ from jaxgait.train.experiments import (
     resolve_experiment,
 )
 from jaxgait.train.loop import train, train_seeds
+from jaxgait.train.progress import Progress
 from jaxgait.train.setup import DEFAULT_RUNS, TrainError
 
 # ------------------------------------------------------------------------------- CLI
@@ -108,6 +109,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=None, help="results folder (default runs/NAME)")
     p.add_argument("--resume", action="store_true", help="continue from the last checkpoint")
     p.add_argument("--no-plots", action="store_true", help="do not write figures")
+    p.add_argument(
+        "--no-video", action="store_true", help="do not write best.mp4 (a video of the best)"
+    )
     return p
 
 
@@ -154,18 +158,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         compile_cache.enable()  # later runs with the same shapes skip the compilation
     except ImportError:
         pass
+    say = None
     try:
         exp, out = _cli_experiment(a)
-        say = lambda s: print(s, flush=True)  # noqa: E731
+        say = Progress()  # a live bar on a terminal, plain lines otherwise
+        kw = dict(resume=a.resume, progress=say, plots=not a.no_plots, video=not a.no_video)
         if a.seeds is not None:
-            results = train_seeds(
-                exp, a.seeds, out, resume=a.resume, progress=say, plots=not a.no_plots
-            )
+            results = train_seeds(exp, a.seeds, out, **kw)
             for r in results:
                 print(f"seed {r.config.seed}: best {r.best_score}; results in {r.out_dir}")
             return 0
-        result = train(exp, out, resume=a.resume, progress=say, plots=not a.no_plots)
+        result = train(exp, out, **kw)
     except KeyboardInterrupt:
+        if say is not None:
+            say.close()
         print("interrupted; continue with --resume (the last checkpoint is kept)", file=sys.stderr)
         return 130
     except (ExperimentError, TrainError, PresetError, CheckpointError) as e:

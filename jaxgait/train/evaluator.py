@@ -96,8 +96,9 @@ def _batched_rollout(model_name: str, cfg):
 
 
 def _score_fn(objective):
-    """``(trace, events, summary, max_stage) -> (stage, value, valid)`` of a batch of
-    rollouts (leading axis) for ``objective``: their measures, validity and fitness."""
+    """``(trace, events, summary, max_stage) -> (stage, value, valid, distance, duration)``
+    of a batch of rollouts (leading axis) for ``objective``: their measures, validity,
+    fitness, and the distance [m] and time [s] walked."""
     from jaxgait.analysis.measures import compute_measures
 
     measure = jax.vmap(functools.partial(compute_measures, skip=2))
@@ -106,9 +107,18 @@ def _score_fn(objective):
         m = measure(trace, events, summary)
         valid = objective_mod.rollout_valid(trace, summary)
         stage, value = objective.fitness(m, valid, max_stage)
-        return stage, value, valid
+        return stage, value, valid, summary.distance, summary.duration
 
     return score
+
+
+def worst_rows(stage: np.ndarray, value: np.ndarray) -> np.ndarray:
+    """(P,) column of the worst of the k evaluations in each row of (P, k) ``stage, value``
+    (the one :func:`~jaxgait.train.objective.worst_of_k` keeps: lowest stage, then lowest
+    value; a failed (NaN) evaluation is the worst)."""
+    stage = np.where(np.isnan(value), -(2**30), stage)
+    value = np.where(np.isnan(value), -np.inf, value)
+    return np.array([np.lexsort((v, s))[0] for s, v in zip(stage, value, strict=True)], int)
 
 
 @functools.lru_cache(maxsize=32)
@@ -149,8 +159,8 @@ def _lane_scorer(model_name: str, cfg, objective, lanes: int, mesh: Mesh):
     )
 
     def scored(params, env, max_stage, d_lim, v0):
-        (stage, value, valid), stats = run(params, env, max_stage, d_lim, v0)
-        return stage, value, valid, stats
+        out, stats = run(params, env, max_stage, d_lim, v0)
+        return (*out, stats)
 
     return jax.jit(scored)
 
@@ -213,6 +223,11 @@ class PopulationEvaluator:
         #: last evaluation: of the queue, or of the direct calls (whose lanes idle from the end
         #: of their rollout to the end of the call's longest one).
         self.last_stats = None
+        #: ``(distance [m], duration [s])`` (NumPy, one per rollout) of the last
+        #: :meth:`scores`, and per item of the last :meth:`evaluate_many` those of each
+        #: parameter set's worst-of-k rollout
+        self.last_walk: tuple[np.ndarray, np.ndarray] | None = None
+        self.last_walks: list[tuple[np.ndarray, np.ndarray]] = []
         # host scalars: replicated on every device (and process) of the mesh
         self.d_lim = np.float32(exp.d_lim if math.isfinite(exp.d_lim) else np.inf)
         self.v0 = np.float32(exp.v0)
@@ -258,6 +273,7 @@ class PopulationEvaluator:
         stage = np.zeros(n, np.int32)
         value = np.zeros(n, np.float64)
         valid = np.zeros(n, bool)
+        dist, dur = np.zeros(n), np.zeros(n)
         # The iterations of a queued run compile no direct call, so the final evaluation's
         # few rollouts get a call of their own size instead of one padded to :attr:`rows`.
         rows = padded_size(n, self.n_devices, None)[0] if self.lanes is not None else None
@@ -266,8 +282,9 @@ class PopulationEvaluator:
             rows = trace.t.shape[0]
             ms = np.concatenate([np.asarray(cap)[real], np.zeros(rows - m, np.int32)])
             ms = shard_population(ms, self.mesh)
-            s, v, ok = to_host(self.score(trace, events, summary, ms))
+            s, v, ok, d, t = to_host(self.score(trace, events, summary, ms))
             stage[real], value[real], valid[real] = (a[:m] for a in (s, v, ok))
+            dist[real], dur[real] = d[:m], t[:m]
             if keep_first and first is None:
                 rec = (trace, events, summary)
                 if self.mesh.is_multi_process:  # gather the call, keep row 0
@@ -281,6 +298,7 @@ class PopulationEvaluator:
             total += int(ran.max()) * rows * chunk_steps
             chunks += int(ran.max())
         self.last_stats = LaneStats(busy=busy, total=total, chunks=chunks)
+        self.last_walk = (dist, dur)
         if keep_first:
             return stage, value, valid, first
         return stage, value, valid
@@ -311,7 +329,8 @@ class PopulationEvaluator:
         p = shard_population(group(jnp.asarray(params)), self.mesh)
         e = shard_population(jax.tree.map(group, env_all), self.mesh)
         ms = shard_population(group(jnp.asarray(max_stage, jnp.int32)), self.mesh)
-        stage, value, valid, stats = to_host(self.lane_score(p, e, ms, self.d_lim, self.v0))
+        out = to_host(self.lane_score(p, e, ms, self.d_lim, self.v0))
+        stage, value, valid, dist, dur, stats = out
         self.last_stats = jax.tree.map(lambda x: x.sum(), stats)
 
         def flat(x):
@@ -319,6 +338,7 @@ class PopulationEvaluator:
             out[slots[real]] = x.reshape(d * per)[real]
             return out
 
+        self.last_walk = (flat(dist).astype(np.float64), flat(dur).astype(np.float64))
         return flat(stage), flat(value).astype(np.float64), flat(valid)
 
     def evaluate(self, population: jax.Array, key: jax.Array, max_stage=None):
@@ -346,12 +366,15 @@ class PopulationEvaluator:
             for (_, _, ms), n in zip(items, sizes, strict=True)
         ]
         stage, value, valid = self.scores(params, keys, np.concatenate(caps))
+        dist, dur = self.last_walk
         out, at = [], 0
+        self.last_walks = []
         for n in sizes:
             sl = slice(at, at + n * k)
             at += n * k
-            ws, wv = objective_mod.worst_of_k(
-                jnp.asarray(stage[sl].reshape(n, k)), jnp.asarray(value[sl].reshape(n, k))
-            )
+            st, va = stage[sl].reshape(n, k), value[sl].reshape(n, k)
+            ws, wv = objective_mod.worst_of_k(jnp.asarray(st), jnp.asarray(va))
             out.append((ws, wv.astype(jnp.float32), int((~valid[sl]).sum())))
+            pick = (np.arange(n), worst_rows(st, va))
+            self.last_walks.append((dist[sl].reshape(n, k)[pick], dur[sl].reshape(n, k)[pick]))
         return out

@@ -21,8 +21,11 @@ name               model    environment      optimiser  objective               
 ``exp7a`` / ``b``  FBL/+    wavy [4]         stage PSO  as exp6                          5
 ``exp3_cmaes``     FBL      flat             CMA-ES     exp3 stages (rank key)           1
 ``exp7a_cmaes``    FBL      wavy             CMA-ES     exp7 stages (rank key)           5
-``quickstart``     FBL      flat             CMA-ES     0.5 d + 10 upright + 10 C_speed  1
-                                                        - 0.01 E/d, 8 x 6, 8 s
+``quickstart``     FBL      flat             CMA-ES     d + 20 upright + 10 C_speed      1
+                                                        + 20 upright C_speed, 16 x 40,
+                                                        20 s, from the Geyer-Herr gains
+``wang_walk_*``    wang8    flat             CMA-ES     quickstart's + 10 C_trunk        1
+                                                        - 0.004/m J_effort, 50 x 40-80
 =================  =======  ===============  =========  ===============================  =====
 
 Common settings (thesis ch. 3): v* = 1.3 m/s, 60 particles x 150 iterations, d_lim = 35 m on
@@ -37,9 +40,31 @@ flat ground and 120 m on the perturbed environments, entrance conditions of Tabl
   times" on both perturbed environments).
 * exp5 follows the thesis text (flat ground, exp2's stages, v* = 2.5 m/s, SPEC §8);
   ``exp5_table`` keeps Table 3.1's environment 2 and stage list.
-* quickstart weights: with a time limit and no distance limit, d = v t rewards speed by
-  8 m per m/s over 8 s; C_speed's weight 10 keeps the optimum at v*; E/d at ~300 J/m weighs
-  about 3.
+* quickstart (the main job, ``./jg train``): starts from the Geyer-Herr gains (the table's
+  initial values), which fall after 1.7 s.  While the rollouts fall, F = d + 10 C_speed:
+  walking further at a speed near v*.  A rollout that walks the whole 20 s gains 20
+  (``upright``) and its speed error counts 30 times (``speed`` + ``upright_speed``), more
+  than d = v t rewards speed (20 m per m/s), so the optimum is a 20 s walk at v*.  16
+  candidates are one direct call (no lane queue), so the iterations, the final evaluation
+  and the perturbation check share one compiled rollout.
+* wang_walk_1p25 / 1p0 / 1p5 / 1p75 (Wang et al. 2012 section 6: nwalk, swalk, fwalk,
+  vwalk): CMA-ES with Wang's population 50 on the 8-muscle controller; nwalk starts from the
+  table's initial values (the Geyer-Herr gains extended to RF, SI and SP), swalk and fwalk
+  from nwalk, vwalk from fwalk (Wang starts each from a neighbouring speed's solution).
+  Wang's return R = sum of task terms - w_e J_effort is maximised as F = d + 20 upright +
+  10 C_speed + 20 upright C_speed + 10 C_trunk + C_effort: the task terms (a target CoM speed,
+  not falling over the rollout -- 20 s here, Wang's 10 s walked 60 s less reliably --, the
+  upper body in the lean band) dominate, C_effort = -(0.004 / mass) J_effort (J_effort =
+  100 J_M + 0.5 J_L, J_M with Wang's metabolic model and basal rate; J_R = 0 in the planar
+  model) is his term as he weighs it.  Wang's sigma 0.005 is for his normalised parameters;
+  here sigma is 0.1 of each range.
+* wang_run_3p0 / 4p0 / 5p0 (Wang section 6, running): the same search at v* = 3, 4, 5 m/s
+  plus 20 x (-double-stance fraction); as Wang, 3 m/s starts from the preset
+  ``wang_run_start`` (the table's Geyer-Herr values with the GAS and SOL force-feedback gains
+  doubled) at v0 = 3.05 m/s, and each faster one from the slower one's solution.
+* wang_push_walk_1p25, wang_push_run_4p0 (Wang section 6): nwalk and the 4 m/s runner
+  re-optimised on environment 2 with one 100 N (50 N for running), 0.4 s forward push on the
+  trunk at a random time in 3-8 s, the worst of 4 push times kept (a push at any phase).
 * Start: the thesis starts from a walking gait (2.2.2.1), here the ``fbl_walk`` preset
   (``fblplus_walk``, the same gait with neutral FBL+ extras, for the FBL+ experiments);
   ``init = None`` starts PSO uniformly in the ranges (CMA-ES at the box centre), ``"table"``
@@ -57,6 +82,7 @@ from pathlib import Path
 from typing import Any
 
 from jaxgait import models
+from jaxgait.core.limits import LimitError, check_distance, check_duration
 
 #: Optimisers (keys of :data:`jaxgait.optim.STRATEGIES`).
 OPTIMISERS = ("pso", "stage_pso", "cmaes")
@@ -210,6 +236,11 @@ class Experiment:
             "duration",
             _number("duration", self.duration, "> 0 and finite", lambda v: 0 < v < math.inf),
         )
+        try:
+            check_distance(self.d_lim, "d_lim")
+            check_duration(self.duration, what="duration")
+        except LimitError as e:
+            raise ExperimentError(str(e)) from None
         s("v0", _number("v0", self.v0, "finite", math.isfinite))
         s("worst_of_k", _integer("worst_of_k", self.worst_of_k, 1))
         s("particles", _integer("particles", self.particles, 2))
@@ -361,6 +392,36 @@ def _e(**kw) -> Experiment:
     return Experiment(**kw)
 
 
+#: Wang et al. 2012 section 6: CMA-ES with population 50 on the 8-muscle controller; the
+#: objective is the return of his section 5 as a weighted sum (see the module docstring).
+_WANG = dict(
+    model="wang8",
+    optimiser="cmaes",
+    optimiser_options=(("sigma_init", 0.1),),
+    particles=50,
+    d_lim=math.inf,
+    duration=20.0,
+)
+_WANG_WEIGHTS = (
+    ("distance", 1.0),
+    ("upright", 20.0),
+    ("speed", 10.0),
+    ("upright_speed", 20.0),
+    ("trunk", 10.0),
+    ("effort", 1.0),
+)
+
+
+def _wang(name: str, v: float, init: str, what: str, **kw) -> Experiment:
+    return _e(
+        name=name,
+        description=f"Wang 2012 {what}: wang8, CMA-ES 50, v* {v:g} m/s, task terms - w_e J_effort",
+        targets=(("v_desired", float(v)),),
+        init=init,
+        **{**_WANG, "weights": _WANG_WEIGHTS, "v0": 1.3, **kw},
+    )
+
+
 EXPERIMENTS: dict[str, Experiment] = {
     e.name: e
     for e in (
@@ -450,17 +511,65 @@ EXPERIMENTS: dict[str, Experiment] = {
         _e(
             name="quickstart",
             description=(
-                "a few-minute CMA-ES run on flat ground from fbl_walk: walk 8 s without "
-                "falling near 1.3 m/s with low energy per metre"
+                "the main job: CMA-ES from the Geyer-Herr gains (which fall after 1.7 s) to a "
+                "gait that walks 20 s near 1.3 m/s on flat ground"
             ),
             optimiser="cmaes",
-            optimiser_options=(("sigma_init", 0.03),),
-            weights=(("distance", 0.5), ("upright", 10.0), ("speed", 10.0), ("energy_per_m", 0.01)),
+            optimiser_options=(("sigma_init", 0.1),),
+            weights=(
+                ("distance", 1.0),
+                ("upright", 20.0),
+                ("speed", 10.0),
+                ("upright_speed", 20.0),
+            ),
             targets=_V,
             d_lim=math.inf,
-            duration=8.0,
-            particles=8,
-            iterations=6,
+            duration=20.0,
+            particles=16,
+            iterations=40,
+            init="table",
+        ),
+        _wang("wang_walk_1p25", 1.25, "table", "nwalk from the Geyer-Herr gains", iterations=80),
+        _wang("wang_walk_1p0", 1.0, "wang_walk_1p25", "swalk from nwalk", iterations=40),
+        _wang("wang_walk_1p5", 1.5, "wang_walk_1p25", "fwalk from nwalk", iterations=40),
+        _wang("wang_walk_1p75", 1.75, "wang_walk_1p5", "vwalk from fwalk", iterations=40),
+        *(
+            _wang(
+                f"wang_run_{v:g}p0",
+                v,
+                init,
+                f"running at {v:g} m/s from {init}",
+                weights=_WANG_WEIGHTS + (("no_double_stance", 20.0),),
+                iterations=80,
+                v0=v0,
+            )
+            for v, v0, init in (
+                (3, 3.05, "wang_run_start"),
+                (4, 4.0, "wang_run_3p0"),
+                (5, 5.0, "wang_run_4p0"),
+            )
+        ),
+        _wang(
+            "wang_push_walk_1p25",
+            1.25,
+            "wang_walk_1p25",
+            "nwalk tolerant of 100 N, 0.4 s forward pushes on the trunk (worst of 4 push times)",
+            env="push",
+            env_overrides=(("magnitude", 100.0), ("duration", 0.4)),
+            worst_of_k=4,
+            iterations=40,
+        ),
+        _wang(
+            "wang_push_run_4p0",
+            4.0,
+            "wang_run_4p0",
+            "4 m/s running tolerant of 50 N, 0.4 s forward pushes (worst of 4 push times)",
+            env="push",
+            env_overrides=(("magnitude", 50.0), ("duration", 0.4)),
+            worst_of_k=4,
+            iterations=40,
+            v0=4.0,
+            weights=_WANG_WEIGHTS + (("no_double_stance", 20.0),),
         ),
     )
 }

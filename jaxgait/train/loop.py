@@ -11,8 +11,9 @@ from typing import Any
 import jax
 import numpy as np
 
+from jaxgait.optim import stage_argbest
 from jaxgait.train import objective as objective_mod
-from jaxgait.train.checkpoint import RunCheckpoints
+from jaxgait.train.checkpoint import RunCheckpoints, iterations_only_difference
 from jaxgait.train.evaluator import PopulationEvaluator
 from jaxgait.train.experiments import (
     Experiment,
@@ -22,6 +23,7 @@ from jaxgait.train.results import (
     _atomic_write,
     _prepare_out,
     final_evaluation,
+    measures_text,
     plot_stage_progress,
     progress_line,
     save_best,
@@ -31,10 +33,15 @@ from jaxgait.train.setup import DEFAULT_RUNS, TrainError, config_document, get_m
 from jaxgait.train.state import (
     TrainResult,
     ask_population,
+    history_length,
     history_rows,
     initial_state,
+    resize_history,
     tell_population,
 )
+
+#: Iterations whose mean time gives the ETA.
+ETA_WINDOW = 5
 
 
 class _Run:
@@ -51,6 +58,8 @@ class _Run:
         self.ckpt: RunCheckpoints | None = None
         self.files: dict[str, Path] = {}
         self.start = 0
+        #: (distance [m], time [s]) of the best's rollout (None before one is known)
+        self.best_walk: tuple[float, float] | None = None
 
     def open(self, resume: bool, max_iterations: int | None) -> None:
         """Prepare the folder, restore the newest checkpoint (``resume``), write config.json."""
@@ -58,27 +67,49 @@ class _Run:
         _prepare_out(self.out, resume)
         self.ckpt = RunCheckpoints(self.out / "checkpoints", self.doc, warn=say)
         if resume:
-            from orbax.checkpoint.utils import to_shape_dtype_struct
-
-            restored = self.ckpt.restore(jax.tree.map(to_shape_dtype_struct, self.state))
-            if restored is None:
-                say(
-                    f"{exp.name}: no checkpoint in {self.ckpt.directory}; starting from iteration 0"
-                )
-            else:
-                self.state = restored[1]
-                say(
-                    f"{exp.name}{self.label}: resumed from iteration {int(self.state.iteration)} "
-                    f"in {self.ckpt.directory}"
-                )
+            self._restore()
         _atomic_write(self.out / "config.json", json.dumps(self.doc, indent=2) + "\n")
         self.files["config"] = self.out / "config.json"
+        if resume:
+            self.best_walk = _saved_walk(self.out / "best.json")
         self.start = int(self.state.iteration)
         self.stop = (
             exp.iterations
             if max_iterations is None
             else min(exp.iterations, self.start + max_iterations)
         )
+
+    def _restore(self) -> None:
+        """The newest checkpoint's state; a run saved with another number of iterations (and
+        nothing else different) is extended, or shortened down to the iterations done."""
+        from orbax.checkpoint.utils import to_shape_dtype_struct
+
+        exp, say = self.exp, self.say
+        abstract = lambda state: jax.tree.map(to_shape_dtype_struct, state)
+
+        def accept(saved):
+            n = iterations_only_difference(saved, self.doc)
+            return None if n is None else abstract(resize_history(self.state, n))
+
+        restored = self.ckpt.restore(abstract(self.state), accept=accept)
+        if restored is None:
+            say(f"{exp.name}: no checkpoint in {self.ckpt.directory}; starting from iteration 0")
+            return
+        state = restored[1]
+        done, saved_n = int(state.iteration), history_length(state)
+        if saved_n != exp.iterations:
+            if done > exp.iterations:
+                raise TrainError(
+                    f"{self.out} holds a run with {done} iterations done; it cannot be resumed "
+                    f"with iterations={exp.iterations} (use at least {done})"
+                )
+            state = resize_history(state, exp.iterations)
+            say(
+                f"{exp.name}{self.label}: iterations {saved_n} -> {exp.iterations} "
+                f"(the saved run had done {done})"
+            )
+        self.state = state
+        say(f"{exp.name}{self.label}: resumed from iteration {done} in {self.ckpt.directory}")
 
     @property
     def pending(self) -> bool:
@@ -93,18 +124,28 @@ class _Run:
         rows = history_rows(state, self.objective)
         write_history(out / "history.csv", rows)
         if improved or not (out / "best.json").exists():
-            self.files.update(save_best(out, exp, self.table, state, self.objective))
+            self.files.update(
+                save_best(out, exp, self.table, state, self.objective, self.best_walk)
+            )
         done_secs = [r["seconds"] for r in rows[self.start :]]
-        steady = done_secs[1:] or done_secs
+        # the first iteration of a call compiles; iterations get slower as more candidates
+        # walk the whole rollout, so the recent ones predict the rest best
+        steady = (done_secs[1:] or done_secs)[-ETA_WINDOW:]
         eta = (exp.iterations - (it + 1)) * float(np.mean(steady))
-        line = progress_line(exp, self.objective, state, eta, first=(it == self.start))
-        self.say(line.replace(exp.name, exp.name + self.label, 1))
+        first = it == self.start
+        line = progress_line(exp, self.objective, state, eta, first, self.best_walk)
+        line = line.replace(exp.name, exp.name + self.label, 1)
+        tick = getattr(self.say, "iteration", None)  # a live progress bar (train.progress)
+        if tick is not None:
+            tick(it + 1, exp.iterations, line)
+        else:
+            self.say(line)
 
     def close(self) -> None:
         if self.ckpt is not None:
             self.ckpt.close()
 
-    def finish(self, evaluator: PopulationEvaluator, plots: bool) -> TrainResult:
+    def finish(self, evaluator: PopulationEvaluator, plots: bool, video: bool) -> TrainResult:
         """Final files: history, best, and (when complete) the re-evaluation and plots."""
         exp, out, state, objective, files = (
             self.exp,
@@ -117,13 +158,13 @@ class _Run:
         rows = history_rows(state, objective)
         files["history"] = out / "history.csv"
         if not (out / "best.json").exists():
-            files.update(save_best(out, exp, self.table, state, objective))
+            files.update(save_best(out, exp, self.table, state, objective, self.best_walk))
         files.setdefault("best", out / "best.json")
         files.setdefault("best_params", out / "best_params.txt")
         complete = int(state.iteration) >= exp.iterations
         measures = None
         if complete:
-            measures, f = final_evaluation(exp, evaluator, state, out, plots)
+            measures, f = final_evaluation(exp, evaluator, state, out, plots, video, say)
             files.update(f)
             if plots and objective.kind == "stage" and rows:
                 (out / "plots").mkdir(exist_ok=True)
@@ -131,13 +172,12 @@ class _Run:
                     out / "plots" / "stage_progress.png", rows, objective.criteria
                 )
             best = objective_mod.score_text(objective, state.best_stage, state.best_value)
-            d, epm = measures.get("distance_m"), measures.get("energy_J_per_m")
-            d = f"{d:.2f} m" if d is not None else "n/a"
-            epm = f"{epm:.0f} J/m" if epm is not None else "n/a"
             say(
                 f"{exp.name}{self.label}: done; best {best}; re-evaluated (no stage cap): "
-                f"{measures['score']}, distance {d}, {epm}; results in {out}"
+                f"{measures['score']}, {measures_text(measures)}; results in {out}"
             )
+            if "video_file" in measures:
+                say(f"{exp.name}{self.label}: video of the best: {measures['video_file']}")
             surv = measures.get("perturbed_survival")
             if surv is not None and surv < 1.0 and not measures.get("perturbed_reference_fell"):
                 say(
@@ -160,6 +200,7 @@ class _Run:
             measures=measures,
             files=files,
             state=state,
+            best_walk=self.best_walk,
         )
 
 
@@ -171,10 +212,14 @@ def _shared_iteration(runs: Sequence[_Run], evaluator: PopulationEvaluator) -> N
     scored = evaluator.evaluate_many([(a.population, a.env_key, a.max_stage) for a in asked])
     jax.block_until_ready([s for s, _, _ in scored])
     secs = time.perf_counter() - t0
-    for r, a, (stage, value, _) in zip(todo, asked, scored, strict=True):
+    walks = evaluator.last_walks
+    for r, a, (stage, value, _), walk in zip(todo, asked, scored, walks, strict=True):
         state, improved = tell_population(
             r.exp, r.strategy, r.objective, r.state, a, stage, value, secs, evaluator.last_stats
         )
+        if improved:  # the parameter set tell_population took as the new best
+            i = int(stage_argbest(stage, value))
+            r.best_walk = (float(walk[0][i]), float(walk[1][i]))
         r.record(state, improved)
 
 
@@ -185,6 +230,7 @@ def _run_all(
     max_iterations: int | None,
     say,
     plots: bool,
+    video: bool = True,
 ) -> list[TrainResult]:
     exp = runs[0].exp
     try:
@@ -202,7 +248,11 @@ def _run_all(
     finally:
         for r in runs:
             r.close()
-    return [r.finish(evaluator, plots) for r in runs]
+    results = [r.finish(evaluator, plots, video) for r in runs]
+    close = getattr(say, "close", None)
+    if close is not None:
+        close()
+    return results
 
 
 def train(
@@ -214,6 +264,7 @@ def train(
     *,
     devices: Sequence | None = None,
     plots: bool = True,
+    video: bool = True,
 ) -> TrainResult:
     """Run (or resume) an experiment.
 
@@ -226,6 +277,7 @@ def train(
       max_iterations: stop after this many iterations in this call (the run stays resumable).
       devices: devices the population is sharded over (default all local devices).
       plots: write the figures at the end.
+      video: write ``best.mp4``, a few seconds of the best's walk, at the end.
 
     Returns:
       :class:`TrainResult`.
@@ -240,7 +292,7 @@ def train(
     out = Path(out_dir) if out_dir is not None else DEFAULT_RUNS / exp.name
     evaluator = PopulationEvaluator(exp, devices)
     run = _Run(exp, out, evaluator, say)
-    return _run_all([run], evaluator, resume, max_iterations, say, plots)[0]
+    return _run_all([run], evaluator, resume, max_iterations, say, plots, video)[0]
 
 
 def seed_dirs(out: Path, seeds: Sequence[int]) -> list[Path]:
@@ -258,6 +310,7 @@ def train_seeds(
     *,
     devices: Sequence | None = None,
     plots: bool = True,
+    video: bool = True,
 ) -> list[TrainResult]:
     """Independent runs of one experiment with different seeds, sharing one program.
 
@@ -292,7 +345,16 @@ def train_seeds(
         _Run(exp.replace(seed=s), d, evaluator, say, label=f" seed {s}")
         for s, d in zip(seeds, seed_dirs(out, seeds), strict=True)
     ]
-    return _run_all(runs, evaluator, resume, max_iterations, say, plots)
+    return _run_all(runs, evaluator, resume, max_iterations, say, plots, video)
+
+
+def _saved_walk(best_json: Path) -> tuple[float, float] | None:
+    """(distance, time) of the best's rollout kept in a results folder's ``best.json``."""
+    try:
+        doc = json.loads(best_json.read_text())
+        return float(doc["distance_m"]), float(doc["duration_s"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
 
 
 def _check_max_iterations(max_iterations) -> None:

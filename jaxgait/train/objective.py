@@ -42,9 +42,15 @@ criteria are not finite scores NaN, mapped to the worst value of every conventio
 ``-inf`` score / ``+inf`` fitness, stage pair ``(-1, -inf)``) before anything reaches an
 optimiser, so it never enters an optimiser state or a best.
 
-Two criteria are added here to the registry of :mod:`jaxgait.analysis.criteria` for the scalar
-objectives (both maximised): ``upright`` = 1 if the rollout did not fall, else 0, and
-``energy_per_m`` = -E/d [J/m] (metabolic energy per metre, d floored at 1 mm).
+Three criteria are added here to the registry of :mod:`jaxgait.analysis.criteria` for the
+scalar objectives (all maximised): ``upright`` = 1 if the rollout did not fall, else 0,
+``energy_per_m`` = -E/d [J/m] (metabolic energy per metre, d floored at 1 mm) and
+``upright_speed`` = upright x C_speed (the speed error counts only for a rollout that did not
+fall, so a search from a falling start is not pulled towards v* before it walks); and
+``effort`` = -(0.004 / mass) J_effort, the effort term of Wang et al. 2012's return
+(section 5; J_effort = 100 J_M + 0.5 J_L with the rollout's metabolic model, the measure
+``effort``); ``no_double_stance`` = -(double-stance fraction) of a rollout that did not
+fall (-1 if it fell), for running.
 """
 
 from __future__ import annotations
@@ -58,6 +64,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxgait.analysis import criteria as crit
+from jaxgait.muscles.energy import WANG_EFFORT_SCALE
 from jaxgait.optim import INVALID_STAGE, canonical_stage, evaluate_stages, stage_rank_key
 
 Measures = Mapping[str, jax.Array]
@@ -76,8 +83,34 @@ def _energy_per_m(m: Measures) -> jax.Array:
     return -m["energy_J_per_m"]
 
 
+def _upright_speed(m: Measures, *, v_desired: float) -> jax.Array:
+    """C_speed = -|v* - v| [m/s] of a rollout that did not fall, 0 for one that fell."""
+    return _upright(m) * crit.c_speed(m, v_desired=v_desired)
+
+
+def _effort(m: Measures) -> jax.Array:
+    """-(w_e) J_effort with w_e = 0.004 / mass (Wang et al. 2012 section 5): the effort term
+    of Wang's return, maximised; the measure ``effort`` (J_M with the basal rate, J_L)."""
+    return -WANG_EFFORT_SCALE * m["effort"] / jnp.maximum(m["mass_kg"], 1e-9)
+
+
+def _no_double_stance(m: Measures) -> jax.Array:
+    """-(double-stance fraction) of a rollout that did not fall, -1 for one that fell: a
+    running task term (Wang's running controllers have no double support)."""
+    up = _upright(m)
+    return -(up * m["double_stance_fraction"] + (1.0 - up))
+
+
 #: Criteria defined here in addition to :data:`jaxgait.analysis.criteria.CRITERIA` (maximised).
-EXTRA_CRITERIA = {"upright": _upright, "energy_per_m": _energy_per_m}
+EXTRA_CRITERIA = {
+    "upright": _upright,
+    "energy_per_m": _energy_per_m,
+    "upright_speed": _upright_speed,
+    "effort": _effort,
+    "no_double_stance": _no_double_stance,
+}
+#: Targets the extra criteria need.
+EXTRA_TARGETS = {"upright_speed": ("v_desired",)}
 
 #: Table 2.8 condition for leaving a stage whose criterion is the key: a function of d_lim [m]
 #: returning the threshold the criterion must exceed.
@@ -103,6 +136,9 @@ CRITERION_SCALE = {
     "energy": 1000.0,
     "upright": 1.0,
     "energy_per_m": 50.0,
+    "upright_speed": 0.1,
+    "effort": 0.5,
+    "no_double_stance": 0.1,
 }
 
 
@@ -127,7 +163,8 @@ def criterion_value(name: str, measures: Measures, targets: Mapping[str, float])
     """Value (maximised) of criterion ``name`` for ``measures`` (single or batched)."""
     key = resolve_criterion(name)
     if key in EXTRA_CRITERIA:
-        return EXTRA_CRITERIA[key](measures)
+        kw = {t: float(targets[t]) for t in EXTRA_TARGETS.get(key, ())}
+        return EXTRA_CRITERIA[key](measures, **kw)
     return crit.criterion(key, measures, **dict(targets))
 
 
@@ -137,8 +174,8 @@ def _check_targets(names: Sequence[str], targets: Mapping[str, float]) -> None:
     if unknown:
         raise ObjectiveError(f"unknown target(s) {unknown}; valid targets: {sorted(known)}")
     for n in names:
-        if n == "speed" and "v_desired" not in targets:
-            raise ObjectiveError("criterion 'speed' needs the target v_desired [m/s]")
+        if n in ("speed", "upright_speed") and "v_desired" not in targets:
+            raise ObjectiveError(f"criterion {n!r} needs the target v_desired [m/s]")
         if n == "steplength" and "sl_desired" not in targets:
             raise ObjectiveError("criterion 'steplength' needs the target sl_desired [m]")
 

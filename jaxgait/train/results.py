@@ -51,8 +51,25 @@ def _fmt_time(s: float) -> str:
     return f"{h}h{m:02d}m" if h else (f"{m}m{sec:02d}s" if m else f"{sec}s")
 
 
-def progress_line(exp: Experiment, objective, state: TrainState, eta_s: float, first: bool) -> str:
-    """``exp3 it 12/150 | stages 0:10 1:30 2:20 | best stage 2 (...) | 95 rollouts/s | ETA``."""
+def walk_text(walk: tuple[float, float] | None) -> str:
+    """``" (walks 20.0 s, 25.9 m, 1.30 m/s)"``: time, distance and mean speed of a rollout."""
+    if walk is None:
+        return ""
+    d, t = walk
+    v = d / t if t > 0 else float("nan")
+    return f" (walks {t:.1f} s, {d:.1f} m, {v:.2f} m/s)"
+
+
+def progress_line(
+    exp: Experiment,
+    objective,
+    state: TrainState,
+    eta_s: float,
+    first: bool,
+    walk: tuple[float, float] | None = None,
+) -> str:
+    """``exp3 it 12/150 | stages 0:10 1:30 2:20 | best stage 2 (...) (walks 20.0 s, 25.9 m,
+    1.30 m/s) | 95 rollouts/s | ETA``; ``walk``: (distance, time) of the best's rollout."""
     it = int(state.iteration) - 1
     counts = np.asarray(state.hist_stage_counts[it])
     if objective.kind == "stage":
@@ -68,18 +85,44 @@ def progress_line(exp: Experiment, objective, state: TrainState, eta_s: float, f
     note = " (incl. compile)" if first else ""
     util = 100 * float(state.hist_utilisation[it])
     return (
-        f"{exp.name} it {it + 1}/{exp.iterations} | {pop} | best {best} | "
+        f"{exp.name} it {it + 1}/{exp.iterations} | {pop} | best {best}{walk_text(walk)} | "
         f"{rate:.1f} rollouts/s{note} | lanes {util:.0f}% busy | ETA {_fmt_time(eta_s)}"
     )
 
 
-def save_best(out: Path, exp: Experiment, table, state: TrainState, objective) -> dict[str, Path]:
-    """Write ``best.json`` (preset) and ``best_params.txt``; returns their paths."""
+def measures_text(m: dict) -> str:
+    """``"walks 20.00 s (no fall), 26.10 m at 1.31 m/s, 320 J/m"`` of a measures dict."""
+
+    def num(key, fmt):
+        v = m.get(key)
+        return format(v, fmt) if isinstance(v, (int, float)) else "n/a"
+
+    fell = "falls" if m.get("fell") else "no fall"
+    return (
+        f"walks {num('duration_s', '.2f')} s ({fell}), {num('distance_m', '.2f')} m at "
+        f"{num('mean_speed_mps', '.2f')} m/s, {num('energy_J_per_m', '.0f')} J/m"
+    )
+
+
+def save_best(
+    out: Path,
+    exp: Experiment,
+    table,
+    state: TrainState,
+    objective,
+    walk: tuple[float, float] | None = None,
+) -> dict[str, Path]:
+    """Write ``best.json`` (preset) and ``best_params.txt``; returns their paths.
+
+    ``walk``: (distance [m], time [s]) of the best's rollout, kept in ``best.json`` as
+    ``distance_m`` and ``duration_s``."""
     from jaxgait.core.params import save_preset
 
     vec = np.clip(np.asarray(state.best_params, np.float64), table.lower, table.upper)
     text = objective_mod.score_text(objective, state.best_stage, state.best_value)
     extra = defining_entries(exp.model)  # a model a preset defines: best.json re-creates it
+    if walk is not None:
+        extra.update(distance_m=float(walk[0]), duration_s=float(walk[1]))
     p_json, p_txt = out / "best.json", out / "best_params.txt"
     save_preset(
         p_json,
@@ -162,10 +205,42 @@ def perturbation_check(
     }
 
 
+#: The video ``train`` writes of its best: the last seconds of the re-evaluated walk.
+BEST_VIDEO = {"name": "best.mp4", "seconds": 6.0, "fps": 10.0, "width": 480, "height": 270}
+
+
+def best_video(out: Path, exp: Experiment, trace, env, mass: float, backend: str = "auto"):
+    """Write ``out/best.mp4``: the last :data:`BEST_VIDEO` seconds of the best's rollout;
+    returns the :class:`~jaxgait.analysis.video.VideoInfo`."""
+    from jaxgait.analysis.video import motion_from_trace, write_video
+
+    title = f"{exp.name}: best"
+    motion = motion_from_trace(trace, env, title=title, mass=mass)
+    v = BEST_VIDEO
+    start = max(float(motion.t[0]), float(motion.t[-1]) - v["seconds"])
+    return write_video(
+        out / v["name"],
+        motion,
+        backend=backend,
+        fps=v["fps"],
+        width=v["width"],
+        height=v["height"],
+        start=start,
+    )
+
+
 def final_evaluation(
-    exp: Experiment, evaluator: PopulationEvaluator, state: TrainState, out: Path, plots: bool
+    exp: Experiment,
+    evaluator: PopulationEvaluator,
+    state: TrainState,
+    out: Path,
+    plots: bool,
+    video: bool = False,
+    warn=print,
 ) -> tuple[dict, dict[str, Path]]:
-    """Re-evaluate the best on the experiment environment; write measures.json and plots.
+    """Re-evaluate the best on the experiment environment; write measures.json, plots and
+    (``video``) ``best.mp4`` (:func:`best_video`; a failure to write it is reported through
+    ``warn`` and leaves the other results).
 
     The best is rolled out on ``worst_of_k`` environments drawn from ``fold_in(seed key,
     EVAL)``; the measures are those of the first draw, the score is the worst of all draws
@@ -195,7 +270,19 @@ def final_evaluation(
     )
     report.update(perturbation_check(evaluator, state.best_params, keys[0], state.key))
     report["perturbed_reference_fell"] = bool(np.asarray(summary.fell))
-    files = {"measures": out / "measures.json"}
+    files = {}
+    if video:
+        from jaxgait.analysis.video import VideoError
+        from jaxgait.world.envs import make_env
+
+        env = make_env(evaluator.env_cfg, keys[0])
+        try:
+            info = best_video(out, exp, trace, env, float(np.asarray(summary.mass)))
+            files["video"] = info.path
+            report["video_file"] = str(info.path)
+        except (VideoError, OSError) as e:
+            warn(f"warning: no video of the best written ({e})")
+    files["measures"] = out / "measures.json"
     _atomic_write(
         files["measures"], json.dumps(json_safe(report), indent=2, allow_nan=False) + "\n"
     )

@@ -10,6 +10,7 @@ from jaxgait import models
 from jaxgait.presets import PresetError, ensure_model, load_preset
 from jaxgait.train.experiments import (
     CONFIG_FORMAT,
+    EXPERIMENTS,
     Experiment,
 )
 
@@ -76,7 +77,14 @@ def resolve_init(init: str | None, table) -> np.ndarray | None:
         return np.asarray(table.init, float)
     try:
         _, _, doc = load_preset(init)
-    except PresetError:
+    except PresetError as e:
+        if init in EXPERIMENTS:  # a start that an experiment of the registry produces
+            raise TrainError(
+                f"init preset {init!r} is not shipped yet: it is the best of the experiment "
+                f"{init!r}; run `jaxgait train {init}` first and copy its best.json to "
+                f"experiments/presets/{init}.json, or start from another preset with "
+                f"--set init=NAME"
+            ) from e
         if init != "fbl_walk" or not _FBL_WALK_RUN.is_file():
             raise
         _, _, doc = load_preset(_FBL_WALK_RUN)

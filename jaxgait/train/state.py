@@ -80,6 +80,8 @@ class TrainResult:
       measures: scalar measures of the best on the experiment environment (when complete).
       files: name -> path of the files written.
       state: the final :class:`TrainState`.
+      best_walk: (distance [m], time [s]) the best's rollout walked in the iteration that
+        found it (None if unknown, e.g. a run resumed from an older results folder).
     """
 
     config: Experiment
@@ -94,6 +96,7 @@ class TrainResult:
     measures: dict | None = None
     files: dict[str, Path] = field(default_factory=dict)
     state: Any = None
+    best_walk: tuple[float, float] | None = None
 
 
 # ------------------------------------------------------------------------------- training
@@ -127,6 +130,49 @@ def initial_state(exp: Experiment, strategy, table, n_stages: int) -> TrainState
         hist_utilisation=jnp.zeros((n,), jnp.float32),
         hist_busy_steps=jnp.zeros((n,), jnp.float32),
     )
+
+
+#: History fields of :class:`TrainState` (leading axis: iterations) and their fill values
+#: before an iteration ran.
+HISTORY_FILL = {
+    "hist_best_stage": INVALID_STAGE,
+    "hist_best_value": np.nan,
+    "hist_iter_stage": INVALID_STAGE,
+    "hist_iter_value": np.nan,
+    "hist_n_valid": 0,
+    "hist_stage_counts": 0,
+    "hist_seconds": 0.0,
+    "hist_rollouts": 0,
+    "hist_utilisation": 0.0,
+    "hist_busy_steps": 0.0,
+}
+
+
+def history_length(state: TrainState) -> int:
+    """Number of iterations the history arrays of ``state`` hold (the run's ``iterations``)."""
+    return int(state.hist_best_stage.shape[0])
+
+
+def resize_history(state: TrainState, n: int) -> TrainState:
+    """``state`` with history arrays for ``n`` iterations: the recorded iterations kept, new
+    rows filled as :func:`initial_state` fills them (so a run extended from N to M
+    iterations holds what a run of M iterations holds after N).
+
+    Raises ValueError if ``n`` is below the number of completed iterations.
+    """
+    done = int(state.iteration)
+    if n < done:
+        raise ValueError(f"cannot shorten a run that has done {done} iterations to {n}")
+    out = {}
+    for name, fill in HISTORY_FILL.items():
+        x = getattr(state, name)
+        have = x.shape[0]
+        if n <= have:
+            out[name] = x[:n]
+        else:
+            pad = jnp.full((n - have,) + x.shape[1:], fill, x.dtype)
+            out[name] = jnp.concatenate([jnp.asarray(x), pad])
+    return state.replace(**out)
 
 
 def iteration_keys(base: jax.Array, iteration: int) -> tuple[jax.Array, jax.Array]:
