@@ -432,3 +432,37 @@ def test_standard_score_of_table_1_by_hand():
     z = np.asarray(standard_scores(knee, ref))
     np.testing.assert_allclose(z, [0.0, 2.0, 0.0], atol=1e-5)
     assert float(z.mean()) == pytest.approx(2.0 / 3.0, rel=1e-5)
+
+
+# ------------------------------------------------------------ the shipped Wang presets
+def _wang_gaits() -> list[str]:
+    from jaxgait import presets
+
+    return sorted(p for p in presets.list_presets() if p.startswith("wang_") and p != "wang_run_start")
+
+
+@pytest.mark.slow
+def test_every_shipped_wang_preset_walks_or_runs_20s_near_its_target():
+    """Each Wang preset, named by its target speed, goes 20 s on flat ground without a fall
+    within 0.1 m/s of the speed its name gives; all in one batched rollout."""
+    from jaxgait.presets import load_preset
+
+    names = _wang_gaits()
+    assert "wang_walk_1p25" in names
+    model = models.get_model("wang8")
+    vecs, v0s, targets = [], [], []
+    for n in names:
+        _, vec, doc = load_preset(n)
+        vecs.append(vec)
+        v0s.append(float(doc.get("v0", 1.3)))
+        targets.append(float(n.rsplit("_", 1)[1].replace("p", ".")))
+    for v0 in sorted(set(v0s)):  # one batch per start speed (v0 is static)
+        idx = [i for i, v in enumerate(v0s) if v == v0]
+        cfg = sim.SimConfig(duration=20.0, log_dt=0.1, v0=v0)
+        env = envs.make_env_batch("flat", jax.random.split(jax.random.PRNGKey(0), len(idx)))
+        f = sim.make_rollout(model, cfg, batched=True)
+        _, _, s, _ = f(jnp.asarray(np.stack([vecs[i] for i in idx]), jnp.float32), env)
+        for k, i in enumerate(idx):
+            assert not bool(s.fell[k]), names[i]
+            v = float(s.distance[k]) / float(s.duration[k])
+            assert abs(v - targets[i]) < 0.1, (names[i], v)

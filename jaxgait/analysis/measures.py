@@ -71,6 +71,11 @@ MEASURE_UNITS: dict[str, str] = {
     "energy_J_per_m": "J/m",
     "cost_of_transport": "J/(kg m)",
     "cost_of_transport_dimless": "-",
+    "grf_peak_max_bw": "BW",
+    "grf_peak_mean_bw": "BW",
+    "grf_peak_time_mean_s": "s",
+    "grf_loading_rate_max_bw_s": "BW/s",
+    "n_stances_measured": "count",
     "metabolic_power_W": "W",
     "effort_J_M_W": "W",
     "effort_J_L": "N^2 m^2",
@@ -138,6 +143,46 @@ def step_lengths(events: Events, skip: int = 2) -> tuple[jax.Array, jax.Array]:
     """
     valid = _recorded(events, skip)
     return jnp.where(valid, events.x_td - events.x_other, 0.0), valid
+
+
+def stance_grf_peaks(events: Events, weight, skip: int = 2) -> dict[str, jax.Array]:
+    """Per-stance vertical-GRF peaks measured at the physics step (``Events.peak_grf``,
+    ``peak_t``, ``loading_rate``), over the recorded stances after the first ``skip``.
+
+    Args:
+      events: touchdown events of a planar rollout.
+      weight: body weight m g [N]; forces are reported in body weights (BW).
+      skip: leading stances ignored as start-up transients (static).
+
+    Returns:
+      ``grf_peak_max_bw`` (the largest stance peak), ``grf_peak_mean_bw`` [BW],
+      ``grf_peak_time_mean_s`` [s] (mean time of the peak after touchdown),
+      ``grf_loading_rate_max_bw_s`` [BW/s] (largest one-step rise of any stance) and
+      ``n_stances_measured``; all 0 without a measured stance or when the buffer has no peaks.
+    """
+    valid = _recorded(events, skip)
+    n = jnp.sum(valid.astype(jnp.int32))
+    if events.peak_grf is None:  # a hand-made buffer without the per-stance fields
+        z = jnp.zeros((), events.t.dtype)
+        return {
+            "grf_peak_max_bw": z,
+            "grf_peak_mean_bw": z,
+            "grf_peak_time_mean_s": z,
+            "grf_loading_rate_max_bw_s": z,
+            "n_stances_measured": jnp.zeros((), jnp.int32),
+        }
+    bw = jnp.maximum(jnp.asarray(weight, events.t.dtype), _TINY)
+    peak = jnp.where(valid, events.peak_grf, 0.0) / bw
+    mean_peak, _, _ = masked_mean_var(peak, valid)
+    mean_t, _, _ = masked_mean_var(jnp.where(valid, events.peak_t, 0.0), valid)
+    rate = jnp.where(valid, events.loading_rate, 0.0) / bw
+    return {
+        "grf_peak_max_bw": jnp.max(peak),
+        "grf_peak_mean_bw": mean_peak,
+        "grf_peak_time_mean_s": mean_t,
+        "grf_loading_rate_max_bw_s": jnp.where(n > 0, jnp.max(rate), 0.0),
+        "n_stances_measured": n,
+    }
 
 
 def last_touchdowns(events: Events, leg: int, k: int) -> tuple[jax.Array, jax.Array]:
@@ -410,8 +455,14 @@ def compute_measures(
         section 5.1: J_M = 1.51 W/kg x mass + metabolic power, J_L the mean summed squared
         soft-limit torque, and J_effort = 100 J_M + 0.5 J_L (J_R = 0 in the planar model),
         :func:`jaxgait.muscles.energy.wang_effort` over the rollout.
+      * ``grf_peak_max_bw``, ``grf_peak_mean_bw`` [BW], ``grf_peak_time_mean_s`` [s],
+        ``grf_loading_rate_max_bw_s`` [BW/s], ``n_stances_measured``: per-stance vertical
+        GRF peaks at the physics step, :func:`stance_grf_peaks`.
       * ``mean_trunk_lean_rad`` [rad]: ``trunk_lean_sum / duration`` (forward lean +).
       * ``mean_trunk_lean_trace_rad`` [rad]: mean of ``qpos[:, 2]`` over alive samples.
+      * ``standard_score_hip``, ``standard_score_knee``, ``standard_score_ankle``,
+        ``standard_score`` [-]: Wang 2012 Table 1's standard scores (:func:`standard_scores`)
+        of the same cycle.
       * ``c_angles``, ``corr_hip``, ``corr_knee``, ``corr_ankle`` [-], ``cycle_valid``,
         ``cycle_angles_deg`` (N, 3) [deg], ``cycle_start_s``, ``cycle_end_s`` [s]: see
         :func:`joint_angle_correlations` (right leg, last full cycle).
@@ -499,4 +550,5 @@ def _compute_measures(trace, events, summary, reference, skip):
         "mean_trunk_lean_trace_rad": lean_trace.astype(f),
     }
     out.update(joint_angle_correlations(trace, events, reference))
+    out.update(stance_grf_peaks(events, mass * G, skip))
     return out

@@ -180,6 +180,10 @@ def initial_state(
         x_td=jnp.zeros(E, dtype),
         x_other=jnp.zeros(E, dtype),
         n=jnp.zeros((), jnp.int32),
+        peak_grf=jnp.zeros(E, dtype),
+        peak_t=jnp.zeros(E, dtype),
+        loading_rate=jnp.zeros(E, dtype),
+        open=jnp.full((2,), -1, jnp.int32),
     )
     zero = jnp.zeros((), dtype)
     return SimState(
@@ -210,19 +214,42 @@ def initial_state(
 
 # ------------------------------------------------------------------------- step
 def _record_touchdowns(ev: Events, td, t, ankle_x) -> Events:
-    """Append this step's touchdowns (at most one per leg) to the event buffer, in place."""
+    """Append this step's touchdowns (at most one per leg) to the event buffer, in place;
+    a recorded touchdown opens the measurement of its stance's GRF peak."""
     for leg in (0, 1):
         i = jnp.minimum(ev.n, ev.t.shape[0] - 1)
         write = td[leg] & (ev.n < ev.t.shape[0])
         put = lambda buf, v, i=i, write=write: buf.at[i].set(jnp.where(write, v, buf[i]))
+        zero = jnp.zeros((), ev.peak_grf.dtype)
         ev = Events(
             t=put(ev.t, t),
             leg=put(ev.leg, jnp.asarray(leg, ev.leg.dtype)),
             x_td=put(ev.x_td, ankle_x[leg]),
             x_other=put(ev.x_other, ankle_x[1 - leg]),
             n=ev.n + td[leg].astype(jnp.int32),
+            peak_grf=put(ev.peak_grf, zero),
+            peak_t=put(ev.peak_t, zero),
+            loading_rate=put(ev.loading_rate, zero),
+            open=ev.open.at[leg].set(
+                jnp.where(td[leg], jnp.where(write, i, -1), ev.open[leg]).astype(jnp.int32)
+            ),
         )
     return ev
+
+
+def _stance_peaks(ev: Events, stance, fz, fz_prev, t, dt, active) -> Events:
+    """Per-stance peak vertical GRF [N], its time after touchdown [s] and the largest
+    one-step loading rate [N/s] of each leg in stance, at the physics step."""
+    peak, peak_t, rate = ev.peak_grf, ev.peak_t, ev.loading_rate
+    for leg in (0, 1):
+        j = jnp.maximum(ev.open[leg], 0)
+        on = active & stance[leg] & (ev.open[leg] >= 0)
+        higher = on & (fz[leg] > peak[j])
+        peak = peak.at[j].set(jnp.where(higher, fz[leg], peak[j]))
+        peak_t = peak_t.at[j].set(jnp.where(higher, t - ev.t[j], peak_t[j]))
+        r = (fz[leg] - fz_prev[leg]) / dt
+        rate = rate.at[j].set(jnp.where(on, jnp.maximum(rate[j], r), rate[j]))
+    return ev.replace(peak_grf=peak, peak_t=peak_t, loading_rate=rate)
 
 
 def _limit_rows(lim: SoftLimits, phi):
@@ -360,6 +387,7 @@ def step(
     lean_sum = s.lean_sum + s.qpos[2] * dt
     limit_sq = s.limit_sq + jnp.sum(jnp.square(f_lim)) * dt  # Wang's J_L integrand
     events = _record_touchdowns(s.events, td & ~s.done, s.t, pts[4:6, 0])
+    events = _stance_peaks(events, gait.stance, grf[:, 1], s.grf[:, 1], s.t, dt, ~s.done)
 
     # 9. fall and stopping criteria; the summary freezes at the first "done"
     hip = pts[6]

@@ -60,6 +60,16 @@ class Events:
       x_td: (E,) ankle x of the touching-down leg at touchdown [m].
       x_other: (E,) ankle x of the other leg at that instant [m].
       n: () number of recorded events (events beyond E are dropped; n keeps counting).
+      peak_grf: (E,) largest vertical GRF of the stance begun at the event [N], taken at the
+        physics step (the decimated trace misses millisecond transients such as a foot slap).
+      peak_t: (E,) time of that peak after the touchdown [s].
+      loading_rate: (E,) largest rise of the vertical GRF over one physics step during that
+        stance, divided by the step [N/s].
+      open: (2,) index of each leg's latest recorded event, whose stance is being measured
+        (-1 before its first touchdown or when the buffer is full).
+
+    The last four are None in event buffers made without them (e.g. by hand in tests); the
+    measures that need them are then left out.
     """
 
     t: jax.Array
@@ -67,6 +77,10 @@ class Events:
     x_td: jax.Array
     x_other: jax.Array
     n: jax.Array
+    peak_grf: jax.Array | None = None
+    peak_t: jax.Array | None = None
+    loading_rate: jax.Array | None = None
+    open: jax.Array | None = None
 
 
 @struct.dataclass

@@ -50,7 +50,8 @@ flat ground and 120 m on the perturbed environments, entrance conditions of Tabl
 * wang_walk_1p25 / 1p0 / 1p5 / 1p75 (Wang et al. 2012 section 6: nwalk, swalk, fwalk,
   vwalk): CMA-ES with Wang's population 50 on the 8-muscle controller; nwalk starts from the
   table's initial values (the Geyer-Herr gains extended to RF, SI and SP), swalk and fwalk
-  from nwalk, vwalk from fwalk (Wang starts each from a neighbouring speed's solution).
+  from nwalk, vwalk from fwalk (Wang starts each from a neighbouring speed's solution);
+  each starts at its target speed (Wang: 1.3 m/s for walking).
   Wang's return R = sum of task terms - w_e J_effort is maximised as F = d + 20 upright +
   10 C_speed + 20 upright C_speed + 10 C_trunk + C_effort: the task terms (a target CoM speed,
   not falling over the rollout -- 20 s here, Wang's 10 s walked 60 s less reliably --, the
@@ -418,7 +419,7 @@ def _wang(name: str, v: float, init: str, what: str, **kw) -> Experiment:
         description=f"Wang 2012 {what}: wang8, CMA-ES 50, v* {v:g} m/s, task terms - w_e J_effort",
         targets=(("v_desired", float(v)),),
         init=init,
-        **{**_WANG, "weights": _WANG_WEIGHTS, "v0": 1.3, **kw},
+        **{**_WANG, "weights": _WANG_WEIGHTS, "v0": float(v), **kw},
     )
 
 

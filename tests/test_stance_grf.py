@@ -1,0 +1,99 @@
+"""Per-stance vertical-GRF peaks measured at the physics step (issue: see the transient)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxgait import models, sim
+from jaxgait.analysis.measures import compute_measures, stance_grf_peaks
+from jaxgait.sim.step import _record_touchdowns, _stance_peaks
+from jaxgait.sim.trace import Events
+from jaxgait.world import envs
+
+DT = 0.0005
+
+
+def empty(E=6):
+    z = jnp.zeros(E, jnp.float32)
+    return Events(
+        t=z, leg=jnp.zeros(E, jnp.int32), x_td=z, x_other=z, n=jnp.zeros((), jnp.int32),
+        peak_grf=z, peak_t=z, loading_rate=z, open=jnp.full((2,), -1, jnp.int32),
+    )
+
+
+def feed(ev, series):
+    """Run the per-step bookkeeping over rows (td_r, td_l, st_r, st_l, fz_r, fz_l)."""
+    prev = jnp.zeros(2, jnp.float32)
+    for k, (td_r, td_l, st_r, st_l, fr, fl) in enumerate(series):
+        t = jnp.asarray(k * DT, jnp.float32)
+        ev = _record_touchdowns(ev, jnp.array([td_r, td_l]), t, jnp.array([1.0, 0.4]))
+        fz = jnp.array([fr, fl], jnp.float32)
+        ev = _stance_peaks(ev, jnp.array([st_r, st_l]), fz, prev, t, DT, jnp.asarray(True))
+        prev = fz
+    return ev
+
+
+def test_peak_time_and_loading_rate_of_a_hand_made_stance():
+    # right heel strike at step 1: a slow heel load, then a 2-step forefoot slap at step 5,
+    # a second hump; the left leg touches down at step 7 with a gentle load
+    rows = [
+        (0, 0, 0, 0, 0.0, 0.0),
+        (1, 0, 1, 0, 100.0, 0.0),
+        (0, 0, 1, 0, 200.0, 0.0),
+        (0, 0, 1, 0, 300.0, 0.0),
+        (0, 0, 1, 0, 350.0, 0.0),
+        (0, 0, 1, 0, 2350.0, 0.0),  # +2000 N in one step: the slap
+        (0, 0, 1, 0, 1500.0, 0.0),
+        (0, 1, 1, 1, 900.0, 50.0),
+        (0, 0, 1, 1, 700.0, 250.0),
+        (0, 0, 0, 1, 0.0, 400.0),  # the right leg lifts off; its peak is kept
+        (0, 0, 0, 1, 0.0, 380.0),
+    ]
+    ev = feed(empty(), rows)
+    assert int(ev.n) == 2 and list(np.asarray(ev.leg[:2])) == [0, 1]
+    assert float(ev.peak_grf[0]) == pytest.approx(2350.0)
+    assert float(ev.peak_t[0]) == pytest.approx(4 * DT)  # step 5 - touchdown at step 1
+    assert float(ev.loading_rate[0]) == pytest.approx(2000.0 / DT)
+    assert float(ev.peak_grf[1]) == pytest.approx(400.0)
+    assert float(ev.peak_t[1]) == pytest.approx(2 * DT, rel=1e-4)
+    assert float(ev.loading_rate[1]) == pytest.approx(200.0 / DT)
+    m = stance_grf_peaks(ev, weight=1000.0, skip=0)
+    assert float(m["grf_peak_max_bw"]) == pytest.approx(2.35)
+    assert float(m["grf_peak_mean_bw"]) == pytest.approx((2.35 + 0.4) / 2)
+    assert float(m["grf_loading_rate_max_bw_s"]) == pytest.approx(2.0 / DT)
+    assert int(m["n_stances_measured"]) == 2
+    m1 = stance_grf_peaks(ev, weight=1000.0, skip=1)  # the start-up stance left out
+    assert float(m1["grf_peak_max_bw"]) == pytest.approx(0.4)
+
+
+def test_a_full_buffer_stops_measuring_instead_of_overwriting():
+    rows = [(1, 0, 1, 0, 500.0, 0.0), (0, 1, 1, 1, 400.0, 100.0), (1, 0, 1, 1, 9000.0, 0.0)]
+    ev = feed(empty(E=2), rows)
+    assert int(ev.n) == 3 and int(ev.open[0]) == -1  # the third touchdown found no slot
+    assert float(ev.peak_grf[0]) == pytest.approx(500.0)  # not overwritten by the 9 kN
+    assert float(ev.peak_grf[1]) == pytest.approx(100.0)
+
+
+def test_fbl_walk_peaks_in_the_rollout_agree_with_a_fine_trace():
+    """The in-rollout peak of each stance equals the maximum of the vertical GRF logged at
+    every physics step over that stance (log_dt = dt)."""
+    model = models.get_model("fbl")
+    from jaxgait.presets import load_preset
+
+    _, vec, _ = load_preset("fbl_walk")
+    cfg = sim.SimConfig(duration=3.0, log_dt=model.dt)
+    env = envs.make_env("flat", jax.random.PRNGKey(0))
+    tr, ev, sm, _ = sim.make_rollout(model, cfg, batched=False)(model.table.as_jnp(vec), env)
+    t, fz = np.asarray(tr.t), np.asarray(tr.grf)[:, :, 1]
+    n = int(ev.n)
+    for k in range(2, n - 1):
+        leg, t0 = int(ev.leg[k]), float(ev.t[k])
+        nxt = [float(ev.t[j]) for j in range(k + 1, n) if int(ev.leg[j]) == leg]
+        t1 = nxt[0] if nxt else t[-1]
+        w = (t > t0 + 0.5 * model.dt) & (t < t1 - 0.5 * model.dt)
+        assert float(ev.peak_grf[k]) == pytest.approx(fz[w, leg].max(), rel=1e-5)
+    m = jax.tree.map(np.asarray, compute_measures(tr, ev, sm))
+    assert float(m["grf_peak_max_bw"]) > float(m["grf_peak_mean_bw"]) > 0.5
