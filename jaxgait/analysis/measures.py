@@ -76,6 +76,13 @@ MEASURE_UNITS: dict[str, str] = {
     "grf_peak_time_mean_s": "s",
     "grf_loading_rate_max_bw_s": "BW/s",
     "n_stances_measured": "count",
+    "grf_corr": "-",
+    "rom_hip_deg": "deg",
+    "rom_knee_deg": "deg",
+    "rom_ankle_deg": "deg",
+    "rom_hip_diff_deg": "deg",
+    "rom_knee_diff_deg": "deg",
+    "rom_ankle_diff_deg": "deg",
     "metabolic_power_W": "W",
     "effort_J_M_W": "W",
     "effort_J_L": "N^2 m^2",
@@ -143,6 +150,38 @@ def step_lengths(events: Events, skip: int = 2) -> tuple[jax.Array, jax.Array]:
     """
     valid = _recorded(events, skip)
     return jnp.where(valid, events.x_td - events.x_other, 0.0), valid
+
+
+def human_likeness(
+    trace: Trace,
+    events: Events,
+    weight,
+    cycle_angles_deg,
+    cycle_valid,
+    reference: refdata.Kinematics,
+    grf_reference: refdata.VerticalGRF | None = None,
+) -> dict[str, jax.Array]:
+    """Gait measures against Winter's walking beyond the angle correlations: the right leg's
+    vertical GRF over its last full cycle (the decimated trace, in body weights) correlated
+    with Winter's (``grf_corr``), and the ranges of motion of hip, knee and ankle over that
+    cycle minus the reference's (``rom_*_diff_deg``; ``rom_*_deg`` the model's).
+
+    Without a full cycle ``grf_corr`` is :data:`CORR_UNDEFINED` and the ranges are 0.
+    """
+    ref_grf = refdata.winter_walking_grf() if grf_reference is None else grf_reference
+    bw = jnp.maximum(jnp.asarray(weight, trace.t.dtype), _TINY)
+    curves, valid = gait_cycle_curves(trace, events, trace.grf[:, 0, 1] / bw, ref_grf.gait_cycle_pct)
+    r = pearson(curves[0], jnp.asarray(ref_grf.mean_bw, curves.dtype))
+    ang = jnp.asarray(cycle_angles_deg)
+    rom = jnp.max(ang, axis=0) - jnp.min(ang, axis=0)
+    ref_mean = jnp.asarray(reference.mean_deg, ang.dtype)
+    rom_ref = jnp.max(ref_mean, axis=0) - jnp.min(ref_mean, axis=0)
+    ok = jnp.asarray(cycle_valid)
+    out = {"grf_corr": jnp.where(valid[0], r, CORR_UNDEFINED)}
+    for j, name in enumerate(("hip", "knee", "ankle")):
+        out[f"rom_{name}_deg"] = jnp.where(ok, rom[j], 0.0)
+        out[f"rom_{name}_diff_deg"] = jnp.where(ok, rom[j] - rom_ref[j], 0.0)
+    return out
 
 
 def stance_grf_peaks(events: Events, weight, skip: int = 2) -> dict[str, jax.Array]:
@@ -458,6 +497,10 @@ def compute_measures(
       * ``grf_peak_max_bw``, ``grf_peak_mean_bw`` [BW], ``grf_peak_time_mean_s`` [s],
         ``grf_loading_rate_max_bw_s`` [BW/s], ``n_stances_measured``: per-stance vertical
         GRF peaks at the physics step, :func:`stance_grf_peaks`.
+      * ``grf_corr`` [-]: the right vertical GRF over the last full cycle against Winter's;
+        ``rom_hip_deg``, ``rom_knee_deg``, ``rom_ankle_deg`` [deg] the ranges of motion over
+        that cycle and ``rom_hip_diff_deg``, ``rom_knee_diff_deg``, ``rom_ankle_diff_deg``
+        [deg] minus the reference's (:func:`human_likeness`).
       * ``mean_trunk_lean_rad`` [rad]: ``trunk_lean_sum / duration`` (forward lean +).
       * ``mean_trunk_lean_trace_rad`` [rad]: mean of ``qpos[:, 2]`` over alive samples.
       * ``standard_score_hip``, ``standard_score_knee``, ``standard_score_ankle``,
@@ -551,4 +594,9 @@ def _compute_measures(trace, events, summary, reference, skip):
     }
     out.update(joint_angle_correlations(trace, events, reference))
     out.update(stance_grf_peaks(events, mass * G, skip))
+    out.update(
+        human_likeness(
+            trace, events, mass * G, out["cycle_angles_deg"], out["cycle_valid"], reference
+        )
+    )
     return out

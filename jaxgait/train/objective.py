@@ -50,7 +50,11 @@ fall, so a search from a falling start is not pulled towards v* before it walks)
 ``effort`` = -(0.004 / mass) J_effort, the effort term of Wang et al. 2012's return
 (section 5; J_effort = 100 J_M + 0.5 J_L with the rollout's metabolic model, the measure
 ``effort``); ``no_double_stance`` = -(double-stance fraction) of a rollout that did not
-fall (-1 if it fell), for running.
+fall (-1 if it fell), for running; the human-likeness criteria ``grf_corr`` (the vertical
+GRF's correlation with Winter's over the last cycle), ``grf_peak`` (-(per-stance peak above
+:data:`GRF_PEAK_BOUND_BW`) in BW), ``corr_hip``, ``corr_knee``, ``corr_ankle`` (each joint's
+correlation; ``angles`` is their minimum) and ``rom`` (-(|knee| + |ankle| range-of-motion
+difference from Winter's) / 10 deg).
 """
 
 from __future__ import annotations
@@ -101,6 +105,21 @@ def _no_double_stance(m: Measures) -> jax.Array:
     return -(up * m["double_stance_fraction"] + (1.0 - up))
 
 
+#: Bound [BW] above which the per-stance peak vertical GRF is penalised (``grf_peak``): the
+#: human loading peak is about 1.1 BW at 1.3 m/s (Winter), 1.3 BW leaves room for speed.
+GRF_PEAK_BOUND_BW = 1.3
+
+
+def _grf_peak(m: Measures) -> jax.Array:
+    """-(largest per-stance vertical-GRF peak above :data:`GRF_PEAK_BOUND_BW`) [BW]."""
+    return -jnp.maximum(m["grf_peak_max_bw"] - GRF_PEAK_BOUND_BW, 0.0)
+
+
+def _rom(m: Measures) -> jax.Array:
+    """-(|knee| + |ankle| range-of-motion difference from the reference) / 10 deg."""
+    return -(jnp.abs(m["rom_knee_diff_deg"]) + jnp.abs(m["rom_ankle_diff_deg"])) / 10.0
+
+
 #: Criteria defined here in addition to :data:`jaxgait.analysis.criteria.CRITERIA` (maximised).
 EXTRA_CRITERIA = {
     "upright": _upright,
@@ -108,6 +127,12 @@ EXTRA_CRITERIA = {
     "upright_speed": _upright_speed,
     "effort": _effort,
     "no_double_stance": _no_double_stance,
+    "grf_corr": lambda m: m["grf_corr"],
+    "grf_peak": _grf_peak,
+    "corr_hip": lambda m: m["corr_hip"],
+    "corr_knee": lambda m: m["corr_knee"],
+    "corr_ankle": lambda m: m["corr_ankle"],
+    "rom": _rom,
 }
 #: Targets the extra criteria need.
 EXTRA_TARGETS = {"upright_speed": ("v_desired",)}
@@ -139,6 +164,12 @@ CRITERION_SCALE = {
     "upright_speed": 0.1,
     "effort": 0.5,
     "no_double_stance": 0.1,
+    "grf_corr": 0.1,
+    "grf_peak": 0.5,
+    "corr_hip": 0.1,
+    "corr_knee": 0.1,
+    "corr_ankle": 0.1,
+    "rom": 1.0,
 }
 
 
