@@ -47,6 +47,14 @@ SMALL: dict[str, dict[str, object]] = {
         "RANGE_SECONDS": 2.0,
         "VIDEO_FPS": 5,
     },
+    "wang": {
+        "DURATION": 1.0,
+        "PRESETS": ("wang_walk_1p25",),
+        "VIDEO_FPS": 5,
+        "PARTICLES": 4,
+        "ITERATIONS": 1,
+        "TRAIN_SECONDS": 0.5,
+    },
 }
 
 
