@@ -142,6 +142,13 @@ def _parser() -> argparse.ArgumentParser:
         help="human joint angles for the correlations and standard scores: walking (Winter, "
         "default) or running (Fukuchi 3.5 m/s)",
     )
+    p.add_argument(
+        "--log-dt",
+        type=float,
+        default=None,
+        help="interval of the logged trajectory (CSV, plots) in seconds, a multiple of the "
+        "physics step (default 0.01; 0.0005 logs every step)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.add_argument(
         "--save-trajectory",
@@ -313,6 +320,7 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
                 model=name,
                 v0=a.v0,
                 reference=a.reference,
+                log_dt=a.log_dt,
             )
             rep = result.report
             if a.video is not None:

@@ -140,3 +140,12 @@ def test_human_likeness_of_winter_itself_and_of_a_shifted_copy():
     assert float(criterion_value("grf_peak", m, {})) == pytest.approx(-0.5)
     assert float(criterion_value("rom", m, {})) == pytest.approx(-2.0)
     assert float(criterion_value("grf_corr", m, {})) == float(out["shifted"]["grf_corr"])
+
+
+def test_evaluate_logs_at_the_interval_asked_and_refuses_a_fraction_of_a_step():
+    from jaxgait import evaluation
+
+    run = evaluation.run("fbl_walk", duration=0.2, log_dt=0.001)
+    assert np.asarray(run.trace.t).shape == (200,)  # 0.2 s at 1 ms
+    with pytest.raises(evaluation.EvaluateError, match="whole multiple of the physics step"):
+        evaluation.run("fbl_walk", duration=0.2, log_dt=0.0007)

@@ -252,6 +252,7 @@ def plot_grf(
         ax.plot(pct, mean, color=MODEL_COLOR, lw=1.5, label="model mean ± SD")
         r = _pearson(mean, np.asarray(ref.mean_bw, float))
         title = f"Right vertical GRF, {_cycle_span_note(n, n_cycles)} (r = {r:.2f})"
+        _stance_peak_marks(ax, events, float(mass_kg) * G, n_cycles)
     else:
         alive = _alive(trace)
         _time_axis(ax, _np(trace.t)[alive].astype(float), fz[alive], MODEL_COLOR)
@@ -263,6 +264,25 @@ def plot_grf(
     ax.legend(fontsize=8)
     ax.set_title(title, fontsize=10)
     return _save(fig, path)
+
+
+def _stance_peak_marks(ax, events, weight: float, n_cycles: int) -> None:
+    """Mark the right leg's per-stance peaks measured at the physics step (events.peak_grf),
+    which the decimated trace's curve can miss, at their time as % of the cycle."""
+    if getattr(events, "peak_grf", None) is None:
+        return
+    n = min(int(_np(events.n)), _np(events.t).shape[0])
+    t, leg = _np(events.t)[:n].astype(float), _np(events.leg)[:n]
+    peak, peak_t = _np(events.peak_grf)[:n].astype(float), _np(events.peak_t)[:n].astype(float)
+    right = np.flatnonzero(leg == 0)
+    pts = [
+        (100.0 * peak_t[i] / (t[j] - t[i]), peak[i] / weight)
+        for i, j in zip(right[:-1], right[1:])
+        if t[j] > t[i]
+    ][-n_cycles:]
+    if pts:
+        x, y = np.asarray(pts).T
+        ax.plot(x, y, "v", color=MODEL_COLOR, ms=5, label="stance peaks at the physics step")
 
 
 # ------------------------------------------------------------------------------ activations
