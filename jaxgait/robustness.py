@@ -6,8 +6,9 @@ Command line::
 
     python -m jaxgait.robustness PRESET_OR_FILE [--model fbl|fblplus] [--seeds N]
         [--duration S] [--after-push T] [--push-env random_push|push] [--seed S]
-        [--push-window T_MIN T_MAX] [--push-max-duration S] [--push-step N] [--push-max N]
-        [--push-per-rung M] [--push-refine R] [--tests push,wavy,slope] [--json]
+        [--push-window T_MIN T_MAX] [--push-max-duration S] [--push-duration S]
+        [--push-step N] [--push-max N] [--push-per-rung M] [--push-refine R]
+        [--tests push,wavy,slope] [--json]
 
 prints ``max_push_N``, ``max_slope_pct`` and ``slope_distance_m`` with their SDs.  An FBL
 preset run with ``--model fblplus`` is lifted to FBL+ with the neutral extra parameters
@@ -79,6 +80,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--push-max-duration", type=float, default=1.0, help="push duration clip [s] (1)"
     )
+    p.add_argument(
+        "--push-duration",
+        type=float,
+        default=None,
+        help="with --push-env push: the push's duration [s] (default 0.25)"
+    )
     p.add_argument("--push-step", type=float, default=20.0, help="ladder spacing [N] (20)")
     p.add_argument("--push-max", type=float, default=400.0, help="largest push tried [N] (400)")
     p.add_argument("--push-per-rung", type=int, default=4, help="amplitudes per batch (4)")
@@ -129,6 +136,7 @@ def main(argv=None) -> int:
                 push_t_min=a.push_window[0],
                 push_t_max=a.push_window[1],
                 push_max_duration=a.push_max_duration,
+                push_duration=a.push_duration,
                 push_step=a.push_step,
                 push_max=a.push_max,
                 push_per_rung=a.push_per_rung,

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from jaxgait import robustness, sim
+from jaxgait.analysis import robustness as rb
 from jaxgait.analysis.robustness import RobustnessConfig, ladder_search, push_survive_fn
 from jaxgait.presets import load_preset
 from jaxgait.world import envs
@@ -221,3 +222,11 @@ def test_cli_bad_input(capsys):
     assert "no_such_preset_xyz" in capsys.readouterr().err
     assert robustness.main(["fblplus_walk", "--tests", "push,fly"]) == 2
     assert robustness.main(["fblplus_walk", "--model", "fbl"]) == 2
+
+
+def test_push_duration_sets_the_fixed_push_and_is_checked():
+    cfg = rb.RobustnessConfig(seeds=2, push_env="push", push_duration=0.4)
+    env = rb.push_base_envs(cfg, jax.random.split(jax.random.PRNGKey(0), 2))
+    np.testing.assert_allclose(np.asarray(env.pushes.duration[:, 0]), 0.4)
+    with pytest.raises(ValueError, match="push_duration=0.4 .push_env 'push' only"):
+        rb.RobustnessConfig(push_duration=0.4)  # random_push draws its own durations

@@ -79,6 +79,8 @@ class RobustnessConfig:
       push_refine: m-section rounds after the ladder (each divides the bracket by
         push_per_rung + 1).
       push_max_duration: push durations are clipped to this [s] (gamma tail, P < 1e-3).
+      push_duration: with ``push_env="push"``, the push's duration [s] (None: environment
+        2's 0.25 s; e.g. 0.4 for Wang et al. 2012's 100 N, 0.4 s pushes).
       duration: maximal simulated time of the wavy-ground and slope walks [s].
       wavy_alpha_max: alpha_max of the wavy ground [rad] (default atan 0.20).
       slope_jitter: amplitude of the per-seed perturbation push on the slope [N].
@@ -96,6 +98,7 @@ class RobustnessConfig:
     push_max: float = 400.0
     push_refine: int = 1
     push_max_duration: float = 1.0
+    push_duration: float | None = None
     duration: float = 60.0
     wavy_alpha_max: float = math.atan(0.20)
     slope_jitter: float = 10.0
@@ -114,6 +117,12 @@ class RobustnessConfig:
         )
         need(self.after_push > 0, f"after_push={self.after_push} (> 0 s)")
         need(self.push_max_duration > 0, f"push_max_duration={self.push_max_duration} (> 0 s)")
+        need(
+            self.push_duration is None
+            or (self.push_env == "push" and 0 < self.push_duration <= self.push_max_duration),
+            f"push_duration={self.push_duration} (push_env 'push' only, 0 < it <= "
+            f"push_max_duration {self.push_max_duration} s)",
+        )
         need(self.push_step > 0, f"push_step={self.push_step} (> 0 N)")
         need(self.push_per_rung >= 1, f"push_per_rung={self.push_per_rung} (>= 1)")
         need(self.push_max > 0, f"push_max={self.push_max} (> 0 N)")
@@ -261,8 +270,9 @@ def _sim_cfg(duration: float, rcfg: RobustnessConfig):
 
 def push_base_envs(rcfg: RobustnessConfig, keys: jax.Array) -> envs_mod.Env:
     """(N,) flat-ground environments with one push of amplitude 0 in slot 0 (module doc)."""
+    extra = {} if rcfg.push_duration is None else {"duration": float(rcfg.push_duration)}
     pcfg = envs_mod.get_env_config(
-        "push", magnitude=0.0, t_min=rcfg.push_t_min, t_max=rcfg.push_t_max
+        "push", magnitude=0.0, t_min=rcfg.push_t_min, t_max=rcfg.push_t_max, **extra
     )
     base = envs_mod.make_env_batch(pcfg, keys)
     if rcfg.push_env == "random_push":

@@ -19,6 +19,8 @@ name               model    environment      optimiser  objective               
 ``exp6a`` / ``b``  FBL/+    random push [3]  stage PSO  (d, C_trunk, C_speed, C_angles,  5
                                                         C_cot), d > 10 m opens stage 1
 ``exp7a`` / ``b``  FBL/+    wavy [4]         stage PSO  as exp6                          5
+``fbl_humanlike``  FBL      flat             stage PSO  exp3's + angles 0.9, GRF peak    1
+                                                        <= 1.3 BW, GRF corr 0.9
 ``exp3_cmaes``     FBL      flat             CMA-ES     exp3 stages (rank key)           1
 ``exp7a_cmaes``    FBL      wavy             CMA-ES     exp7 stages (rank key)           5
 ``quickstart``     FBL      flat             CMA-ES     d + 20 upright + 10 C_speed      1
@@ -375,6 +377,15 @@ _V = (("v_desired", 1.3),)
 _ROBUST = (("distance", None), ("trunk", 10.0), ("speed", None), ("angles", None), ("cot", None))
 _EXP2_STAGES = (("distance", None), ("speed", None), ("steplengths", None), ("energy", None))
 _EXP3_STAGES = _EXP2_STAGES[:3] + (("angles", None), ("energy", None))
+#: exp3's stages with the human-likeness criteria before energy: every joint correlation
+#: above 0.9 (C_angles is their minimum), no stance peak above 1.3 BW, GRF correlation 0.9.
+#: (An entry's threshold is the condition on the previous stage's criterion that opens it.)
+_HUMANLIKE_STAGES = _EXP2_STAGES[:3] + (
+    ("angles", None),
+    ("grf_peak", 0.9),
+    ("grf_corr", -1e-6),
+    ("energy", 0.9),
+)
 # shared settings of several experiments (keyword groups of ``Experiment``)
 _FBLPLUS = {"model": "fblplus", "init": "fblplus_walk"}
 _RUNNING = {"targets": (("v_desired", 2.5),), "duration": 30.0, "v0": 2.5}
@@ -442,6 +453,14 @@ EXPERIMENTS: dict[str, Experiment] = {
                 "Table 3.1 exp 3: flat, FBL, stage PSO (d, C_speed, C_steplengths, C_angles, -E)"
             ),
             stages=_EXP3_STAGES,
+        ),
+        _e(
+            name="fbl_humanlike",
+            description=(
+                "exp3 with human-likeness stages: angles > 0.9, stance GRF peak <= 1.3 BW, "
+                "GRF correlation with Winter > 0.9, then -E"
+            ),
+            stages=_HUMANLIKE_STAGES,
         ),
         _e(
             name="exp4",
