@@ -438,13 +438,18 @@ def test_standard_score_of_table_1_by_hand():
 def _wang_gaits() -> list[str]:
     from jaxgait import presets
 
-    return sorted(p for p in presets.list_presets() if p.startswith("wang_") and p != "wang_run_start")
+    return sorted(
+        p
+        for p in presets.list_presets()
+        if p.startswith(("wang_walk_", "wang_run_")) and p != "wang_run_start"
+    )
 
 
 @pytest.mark.slow
 def test_every_shipped_wang_preset_walks_or_runs_20s_near_its_target():
-    """Each Wang preset, named by its target speed, goes 20 s on flat ground without a fall
-    within 0.1 m/s of the speed its name gives; all in one batched rollout."""
+    """Each Wang walking or running preset, named by its target speed, goes 20 s on flat
+    ground without a fall within 0.1 m/s of the speed its name gives (the push-tolerant ones
+    are checked against their pushes below)."""
     from jaxgait.presets import load_preset
 
     names = _wang_gaits()
@@ -466,3 +471,29 @@ def test_every_shipped_wang_preset_walks_or_runs_20s_near_its_target():
             assert not bool(s.fell[k]), names[i]
             v = float(s.distance[k]) / float(s.duration[k])
             assert abs(v - targets[i]) < 0.1, (names[i], v)
+
+
+@pytest.mark.slow
+def test_the_push_tolerant_walker_survives_wangs_push_where_nwalk_falls():
+    """wang_push_walk_1p25 walks 20 s with a 100 N, 0.4 s forward push on the trunk at 4 s
+    and at 6.3 s; nwalk, from which it was optimised, falls under the same push."""
+    from jaxgait.presets import list_presets, load_preset
+
+    if "wang_push_walk_1p25" not in list_presets():
+        pytest.skip("wang_push_walk_1p25 is not shipped")
+    model = models.get_model("wang8")
+    times = (4.0, 6.3)
+    cfgs = [envs.get_env_config("push", magnitude=100.0, duration=0.4, t_min=t, t_max=t) for t in times]
+    env = jax.tree.map(
+        lambda *x: jnp.stack(x), *[c.build(jax.random.PRNGKey(0)) for c in cfgs]
+    )
+    fell = {}
+    for name in ("wang_push_walk_1p25", "wang_walk_1p25"):
+        _, vec, doc = load_preset(name)
+        cfg = sim.SimConfig(duration=20.0, log_dt=0.1, v0=float(doc.get("v0", 1.3)))
+        f = sim.make_rollout(model, cfg, batched=True)
+        params = jnp.broadcast_to(jnp.asarray(vec, jnp.float32), (len(times), vec.size))
+        _, _, s, _ = f(params, env)
+        fell[name] = np.asarray(s.fell).tolist()
+    assert fell["wang_push_walk_1p25"] == [False, False], fell
+    assert any(fell["wang_walk_1p25"]), fell
