@@ -224,6 +224,7 @@ def test_a_command_law_runs_inside_the_step():
     assert int(law[3].command_state) == round(float(law[3].t) / model.dt)
 
 
+@pytest.mark.slow
 def test_schedules_vmap_like_environments():
     model = models.get_model("fbl")
     _, vec, _ = presets.load_preset("fbl_walk")

@@ -36,6 +36,7 @@ def _loss_grad(model, cfg, p, env, s0):
     return gr.loss_and_grad(model, cfg, p, env, s0, n_segments=1, max_segments=MAX_SEG)
 
 
+@pytest.mark.slow
 def test_gradient_is_finite_and_matches_finite_differences(setup):
     """0.05 s from the initial posture (right stance, no phase switch): AD == central FD."""
     model, p, env = setup
@@ -76,6 +77,7 @@ def test_segment_count_checks(setup):
         gr.loss_and_grad(model, gr.WindowConfig(), p, env, None, n_segments=5, max_segments=2)
 
 
+@pytest.mark.slow
 def test_refinement_improves_the_window_objective_without_falling(setup):
     """Adam on a 1 s window after 3 s of walking: the objective drops, the gait still walks."""
     model, p, env = setup

@@ -87,6 +87,7 @@ def test_lanes_must_be_positive(fbl_model, mixed):
         lane_rollouts(fbl_model, CFG, params, env, _finish, 0)
 
 
+@pytest.mark.slow
 def test_queued_training_evaluation_equals_direct_calls(fbl_model):
     """The population evaluator with ``lanes`` scores every candidate as the direct calls do,
     and both report their lane counts."""

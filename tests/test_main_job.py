@@ -8,6 +8,7 @@ import json
 import re
 
 import numpy as np
+import pytest
 
 from jaxgait import models
 from jaxgait import train as tr
@@ -25,6 +26,7 @@ def test_quickstart_starts_from_the_geyer_herr_gains():
     assert dict(exp.targets)["v_desired"] == 1.3
 
 
+@pytest.mark.slow
 def test_main_job_improves_the_distance_from_the_geyer_herr_start(tmp_path, capsys):
     out = tmp_path / "qs"
     argv = ["quickstart", "--iterations", "5", "--duration", "3", "--no-plots", "--no-video"]

@@ -244,6 +244,7 @@ print("RESULT" + json.dumps({
 """
 
 
+@pytest.mark.slow
 def test_sharded_equals_unsharded(evaluator, walk_vec, tmp_path):
     """16 rollouts on 4 forced CPU devices (a subprocess: the flag must be set before jax
     starts) vs on 1 device here, 4 rollouts per device call in both: identical results."""

@@ -171,6 +171,51 @@ def test_resume_with_more_iterations_extends_a_finished_run(tmp_path):
         tr.train(exp.replace(iterations=3), tmp_path / "ext", resume=True, progress=None)
 
 
+def test_early_stop_ends_the_run_once_its_best_walks_at_the_target_speed(tmp_path):
+    # from fbl_walk with a tiny step size every candidate walks the 1 s near 1.3 m/s
+    exp = tiny(
+        "quickstart",
+        init="fbl_walk",
+        optimiser_options={"sigma_init": 1e-4},
+        iterations=3,
+        stop_speed_tol=0.3,
+    )
+    lines = []
+    res = tr.train(exp, tmp_path / "run", progress=quiet(lines), plots=False, video=False)
+    assert res.iterations_done == 1 and res.complete and len(res.history) == 1
+    d, t = res.best_walk
+    assert t == pytest.approx(1.0, abs=1e-3) and abs(d / t - 1.3) <= 0.3
+    assert any("target reached at iteration 1" in s for s in lines)
+    assert res.measures is not None and (tmp_path / "run" / "measures.json").is_file()
+    # resumed as it is, the finished run does not iterate again
+    again = tr.train(exp, tmp_path / "run", resume=True, progress=None, plots=False, video=False)
+    assert again.iterations_done == 1 and again.complete
+    # with the early stop lifted it goes on to its iterations, as one run without it
+    free = exp.replace(stop_speed_tol=None)
+    cont = tr.train(free, tmp_path / "run", resume=True, progress=None, plots=False, video=False)
+    whole = tr.train(free, tmp_path / "whole", progress=None, plots=False, video=False)
+    assert cont.iterations_done == 3 and cont.complete
+    _same_run(cont, whole)
+
+
+def test_early_stop_rule():
+    exp = tiny("quickstart", duration=20.0, stop_speed_tol=0.05)
+    reach = lambda walk: tr.walk_reaches_target(exp, walk)
+    assert reach((26.0, 20.0))  # 1.30 m/s for the whole 20 s
+    assert reach((25.1, 20.0)) and reach((26.9, 20.0))  # 1.255 and 1.345 m/s
+    assert not reach((24.9, 20.0)) and not reach((27.1, 20.0))  # 1.245 and 1.355 m/s
+    assert not reach((25.35, 19.5))  # 1.30 m/s but fell at 19.5 s
+    assert not reach(None)
+    assert not tr.walk_reaches_target(exp.replace(stop_speed_tol=None), (26.0, 20.0))
+    # unset, it is not written, so configs from before the field still match
+    assert "stop_speed_tol" not in exp.replace(stop_speed_tol=None).to_dict()
+    assert exp.to_dict()["stop_speed_tol"] == 0.05
+    with pytest.raises(ExperimentError, match="stop_speed_tol"):
+        exp.replace(stop_speed_tol=-0.1)
+    with pytest.raises(ExperimentError, match="needs targets.v_desired"):
+        Experiment(name="x", stop_speed_tol=0.1, targets=())
+
+
 def test_cli_resume_iterations_extends(tmp_path, capsys):
     out = str(tmp_path / "run")
     base = ["quickstart", "--particles", "4", "--duration", "1", "--set", "batch_size=4"]

@@ -60,7 +60,7 @@ from jaxgait.train.evaluator import (
     shard_population,
 )
 from jaxgait.train.experiments import EXPERIMENTS, Experiment, get_experiment, list_experiments
-from jaxgait.train.loop import seed_dirs, train, train_seeds
+from jaxgait.train.loop import seed_dirs, train, train_seeds, walk_reaches_target
 from jaxgait.train.results import final_evaluation, perturbation_check, perturbed_copies
 from jaxgait.train.setup import TrainError, config_document, get_model, resolve_init
 from jaxgait.train.state import (
@@ -99,4 +99,5 @@ __all__ = [
     "seed_dirs",
     "train",
     "train_seeds",
+    "walk_reaches_target",
 ]

@@ -67,18 +67,26 @@ def config_differences(saved: Mapping, current: Mapping, prefix: str = "") -> li
     return out
 
 
+#: Experiment fields a resumed run may change: it is extended (more iterations) or its
+#: early stop changed or lifted, and it goes on from where it was.
+EXTENSION_FIELDS = ("iterations", "stop_speed_tol")
+
+
 def iterations_only_difference(saved: Mapping, current: Mapping) -> int | None:
-    """The saved ``experiment.iterations`` if the two config documents differ in that field
-    only, else None (identical documents, or any other difference)."""
+    """The saved ``experiment.iterations`` if the two config documents differ only in
+    :data:`EXTENSION_FIELDS` (the number of iterations, the early stop), else None
+    (identical documents, or any other difference)."""
     a, b = saved.get("experiment"), current.get("experiment")
     if not (isinstance(a, Mapping) and isinstance(b, Mapping)):
         return None
     n = a.get("iterations")
-    if isinstance(n, bool) or not isinstance(n, int) or n == b.get("iterations"):
+    if isinstance(n, bool) or not isinstance(n, int):
+        return None
+    if all(a.get(k) == b.get(k) for k in EXTENSION_FIELDS):
         return None
     rest = lambda doc, exp: {
         **doc,
-        "experiment": {k: v for k, v in exp.items() if k != "iterations"},
+        "experiment": {k: v for k, v in exp.items() if k not in EXTENSION_FIELDS},
     }
     return n if rest(saved, a) == rest(current, b) else None
 

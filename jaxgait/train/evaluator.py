@@ -228,6 +228,9 @@ class PopulationEvaluator:
         #: parameter set's worst-of-k rollout
         self.last_walk: tuple[np.ndarray, np.ndarray] | None = None
         self.last_walks: list[tuple[np.ndarray, np.ndarray]] = []
+        #: per rollout of the last direct :meth:`scores` call: did it fall (None after a
+        #: queued evaluation, whose program returns no fall flags)
+        self.last_fell: np.ndarray | None = None
         # host scalars: replicated on every device (and process) of the mesh
         self.d_lim = np.float32(exp.d_lim if math.isfinite(exp.d_lim) else np.inf)
         self.v0 = np.float32(exp.v0)
@@ -274,6 +277,7 @@ class PopulationEvaluator:
         value = np.zeros(n, np.float64)
         valid = np.zeros(n, bool)
         dist, dur = np.zeros(n), np.zeros(n)
+        fell = np.zeros(n, bool)
         # The iterations of a queued run compile no direct call, so the final evaluation's
         # few rollouts get a call of their own size instead of one padded to :attr:`rows`.
         rows = padded_size(n, self.n_devices, None)[0] if self.lanes is not None else None
@@ -285,6 +289,7 @@ class PopulationEvaluator:
             s, v, ok, d, t = to_host(self.score(trace, events, summary, ms))
             stage[real], value[real], valid[real] = (a[:m] for a in (s, v, ok))
             dist[real], dur[real] = d[:m], t[:m]
+            fell[real] = to_host(summary.fell)[:m]
             if keep_first and first is None:
                 rec = (trace, events, summary)
                 if self.mesh.is_multi_process:  # gather the call, keep row 0
@@ -299,6 +304,7 @@ class PopulationEvaluator:
             chunks += int(ran.max())
         self.last_stats = LaneStats(busy=busy, total=total, chunks=chunks)
         self.last_walk = (dist, dur)
+        self.last_fell = fell
         if keep_first:
             return stage, value, valid, first
         return stage, value, valid
@@ -339,6 +345,7 @@ class PopulationEvaluator:
             return out
 
         self.last_walk = (flat(dist).astype(np.float64), flat(dur).astype(np.float64))
+        self.last_fell = None  # the queued program returns no fall flags
         return flat(stage), flat(value).astype(np.float64), flat(valid)
 
     def evaluate(self, population: jax.Array, key: jax.Array, max_stage=None):

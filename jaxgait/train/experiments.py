@@ -48,7 +48,15 @@ flat ground and 120 m on the perturbed environments, entrance conditions of Tabl
   (``upright``) and its speed error counts 30 times (``speed`` + ``upright_speed``), more
   than d = v t rewards speed (20 m per m/s), so the optimum is a 20 s walk at v*.  16
   candidates are one direct call (no lane queue), so the iterations, the final evaluation
-  and the perturbation check share one compiled rollout.
+  and the perturbation check share one compiled rollout.  The run stops at the first
+  iteration whose best walks the 20 s within 0.05 m/s of v* (``stop_speed_tol``); the 40
+  iterations are a cap.
+* fbl_humanlike_cmaes: the human-likeness goals of ``fbl_humanlike`` as one weighted sum for
+  CMA-ES (16 x 60, 20 s rollouts, sigma 0.05 of the ranges, from ``fbl_walk``): quickstart's
+  walk terms, which dominate, plus 10 ``grf_peak`` (per BW of stance peak above 1.3 BW),
+  10 ``grf_corr``, 5 ``corr_hip``, 5 ``corr_knee``, 10 ``corr_ankle`` and 0.02
+  ``energy_per_m`` (per J/m).  A cheaper search than the stage PSO (exp3's full-size run never
+  left its angles stage, the ankle being the weakest joint).
 * wang_walk_1p25 / 1p0 / 1p5 / 1p75 (Wang et al. 2012 section 6: nwalk, swalk, fwalk,
   vwalk): CMA-ES with Wang's population 50 on the 8-muscle controller; nwalk starts from the
   table's initial values (the Geyer-Herr gains extended to RF, SI and SP), swalk and fwalk
@@ -169,6 +177,10 @@ class Experiment:
         :data:`~jaxgait.train.evaluator.CPU_AUTO_LANES` lanes per CPU device when more
         rollouts than that fall to a device and no ``batch_size`` is set, otherwise direct
         calls (accelerators run wide batches at full speed).
+      stop_speed_tol: early stop [m/s]: the run ends (complete) after the first iteration
+        whose best rollout walked the whole ``duration`` without falling at a mean speed
+        within this of ``v_desired``; None (default): every iteration runs.  Written to the
+        config only when set, so configs written before it existed still match.
     """
 
     name: str
@@ -192,6 +204,7 @@ class Experiment:
     v0: float = 1.3
     batch_size: int | None = None
     lanes: int | None = None
+    stop_speed_tol: float | None = None
 
     def __post_init__(self):
         s = lambda k, v: object.__setattr__(self, k, v)
@@ -253,6 +266,14 @@ class Experiment:
             s("batch_size", _integer("batch_size", self.batch_size, 1))
         if self.lanes is not None:
             s("lanes", _integer("lanes", self.lanes, 0))
+        if self.stop_speed_tol is not None:
+            tol = self.stop_speed_tol
+            rule = ">= 0 [m/s] (null: no early stop)"
+            s("stop_speed_tol", _number("stop_speed_tol", tol, rule, lambda v: 0 <= v < math.inf))
+            if "v_desired" not in dict(self.targets):
+                raise ExperimentError(
+                    f"invalid stop_speed_tol={tol!r}: the early stop needs targets.v_desired"
+                )
         if not isinstance(self.stage_cap, bool):
             raise ExperimentError(f"invalid stage_cap={self.stage_cap!r}: must be true or false")
         if self.init is not None and (not isinstance(self.init, str) or not self.init):
@@ -315,6 +336,8 @@ class Experiment:
             if f.name.startswith("_"):
                 continue
             v = getattr(self, f.name)
+            if f.name == "stop_speed_tol" and v is None:
+                continue  # unset: configs written before the field existed stay equal
             if f.name in ("env_overrides", "optimiser_options", "targets", "weights"):
                 v = dict(v)
             elif f.name == "stages":
@@ -385,6 +408,21 @@ _HUMANLIKE_STAGES = _EXP2_STAGES[:3] + (
     ("grf_peak", 0.9),
     ("grf_corr", -1e-6),
     ("energy", 0.9),
+)
+#: A weighted form of the human-likeness goals for CMA-ES: quickstart's walk (20 s at v*)
+#: dominates; then 10 per BW of stance peak above 1.3 BW, 10 x GRF correlation, 5 x the hip
+#: and knee and 10 x the ankle correlation (the weakest joint), 0.02 per J/m of energy.
+_HUMANLIKE_WEIGHTS = (
+    ("distance", 1.0),
+    ("upright", 20.0),
+    ("speed", 10.0),
+    ("upright_speed", 20.0),
+    ("grf_peak", 10.0),
+    ("grf_corr", 10.0),
+    ("corr_hip", 5.0),
+    ("corr_knee", 5.0),
+    ("corr_ankle", 10.0),
+    ("energy_per_m", 0.02),
 )
 # shared settings of several experiments (keyword groups of ``Experiment``)
 _FBLPLUS = {"model": "fblplus", "init": "fblplus_walk"}
@@ -461,6 +499,21 @@ EXPERIMENTS: dict[str, Experiment] = {
                 "GRF correlation with Winter > 0.9, then -E"
             ),
             stages=_HUMANLIKE_STAGES,
+        ),
+        _e(
+            name="fbl_humanlike_cmaes",
+            description=(
+                "CMA-ES from fbl_walk: quickstart's 20 s walk at 1.3 m/s plus penalties on the "
+                "stance GRF peak above 1.3 BW, rewards for the GRF and joint correlations with "
+                "Winter, and energy per metre"
+            ),
+            optimiser="cmaes",
+            optimiser_options=(("sigma_init", 0.05),),
+            weights=_HUMANLIKE_WEIGHTS,
+            d_lim=math.inf,
+            duration=20.0,
+            particles=16,
+            iterations=60,
         ),
         _e(
             name="exp4",
@@ -548,6 +601,7 @@ EXPERIMENTS: dict[str, Experiment] = {
             particles=16,
             iterations=40,
             init="table",
+            stop_speed_tol=0.05,
         ),
         _wang("wang_walk_1p25", 1.25, "table", "nwalk from the Geyer-Herr gains", iterations=80),
         _wang("wang_walk_1p0", 1.0, "wang_walk_1p25", "swalk from nwalk", iterations=40),

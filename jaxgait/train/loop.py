@@ -113,7 +113,13 @@ class _Run:
 
     @property
     def pending(self) -> bool:
-        return int(self.state.iteration) < self.stop
+        return int(self.state.iteration) < self.stop and not self.target_reached
+
+    @property
+    def target_reached(self) -> bool:
+        """The early stop (``exp.stop_speed_tol``): the best's rollout walked the whole
+        duration without falling at a mean speed within the tolerance of v_desired."""
+        return walk_reaches_target(self.exp, self.best_walk)
 
     def record(self, state, improved: bool) -> None:
         """Checkpoint the state of a finished iteration, write history and best, say progress."""
@@ -140,6 +146,13 @@ class _Run:
             tick(it + 1, exp.iterations, line)
         else:
             self.say(line)
+        if self.target_reached:
+            d, t = self.best_walk
+            self.say(
+                f"{exp.name}{self.label}: target reached at iteration {it + 1}: the best walks "
+                f"the whole {t:.1f} s at {d / t:.2f} m/s (within {exp.stop_speed_tol:g} m/s of "
+                f"{dict(exp.targets)['v_desired']:g}); stopping"
+            )
 
     def close(self) -> None:
         if self.ckpt is not None:
@@ -161,7 +174,7 @@ class _Run:
             files.update(save_best(out, exp, self.table, state, objective, self.best_walk))
         files.setdefault("best", out / "best.json")
         files.setdefault("best_params", out / "best_params.txt")
-        complete = int(state.iteration) >= exp.iterations
+        complete = int(state.iteration) >= exp.iterations or self.target_reached
         measures = None
         if complete:
             measures, f = final_evaluation(exp, evaluator, state, out, plots, video, say)
@@ -346,6 +359,18 @@ def train_seeds(
         for s, d in zip(seeds, seed_dirs(out, seeds), strict=True)
     ]
     return _run_all(runs, evaluator, resume, max_iterations, say, plots, video)
+
+
+def walk_reaches_target(exp: Experiment, walk: tuple[float, float] | None) -> bool:
+    """Whether a rollout that walked ``walk`` = (distance [m], time [s]) meets the early stop
+    of ``exp``: it lasted the whole ``exp.duration`` (to 1 ms: no fall) at a mean speed
+    within ``exp.stop_speed_tol`` of ``v_desired``.  False without an early stop."""
+    if exp.stop_speed_tol is None or walk is None:
+        return False
+    d, t = walk
+    if not (t >= exp.duration - 1e-3 and t > 0):
+        return False
+    return abs(d / t - dict(exp.targets)["v_desired"]) <= exp.stop_speed_tol
 
 
 def _saved_walk(best_json: Path) -> tuple[float, float] | None:

@@ -181,8 +181,18 @@ def perturbed_copies(best, key, n: int, rel: float):
     return best[None] * (1.0 + rel * noise.astype(best.dtype))
 
 
+#: Copies of the best, perturbed by :data:`PERTURBED_RELATIVE`, walked by the final evaluation.
+PERTURBED_COPIES = 8
+PERTURBED_RELATIVE = 1e-6
+
+
 def perturbation_check(
-    evaluator: PopulationEvaluator, best, env_key, key, n: int = 8, rel: float = 1e-6
+    evaluator: PopulationEvaluator,
+    best,
+    env_key,
+    key,
+    n: int = PERTURBED_COPIES,
+    rel: float = PERTURBED_RELATIVE,
 ) -> dict:
     """How many of ``n`` copies of ``best``, each scaled by (1 + rel N(0, 1)), do not fall.
 
@@ -190,6 +200,7 @@ def perturbation_check(
     rollout can owe its success to rounding: when the best itself stays up there
     (``perturbed_reference_fell`` false), a fraction below 1 says it falls under changes as
     small as float32 rounding (use worst-of-k or a perturbed environment to train).
+    (:func:`final_evaluation` runs the same copies in the call that re-evaluates the best.)
     """
     params = perturbed_copies(best, jax.random.fold_in(key, _EVAL_TAG + 1), n, rel)
     keys = jnp.repeat(env_key[None], n, axis=0)
@@ -197,11 +208,16 @@ def perturbation_check(
     for real, _, _, summary in evaluator.run(params, keys):
         fell[real] = np.asarray(summary.fell)[: real.size]
         dist[real] = np.asarray(summary.distance)[: real.size]
+    return perturbation_report(fell, dist, rel)
+
+
+def perturbation_report(fell: np.ndarray, dist: np.ndarray, rel: float) -> dict:
+    """The ``perturbed_*`` measures of copies that fell (``fell``) or walked ``dist`` [m]."""
     return {
         "perturbed_relative": rel,
-        "perturbed_copies": n,
-        "perturbed_survival": float(1.0 - fell.mean()),
-        "perturbed_distance_min_m": float(dist.min()),
+        "perturbed_copies": int(fell.size),
+        "perturbed_survival": float(1.0 - np.mean(fell)),
+        "perturbed_distance_min_m": float(np.min(dist)),
     }
 
 
@@ -248,11 +264,18 @@ def final_evaluation(
     """
     from jaxgait.analysis.measures import MEASURE_UNITS, compute_measures
 
-    k = exp.worst_of_k
+    k, n = exp.worst_of_k, PERTURBED_COPIES
     base = state.key
     keys = jax.random.split(jax.random.fold_in(base, _EVAL_TAG), k)
-    params = jnp.repeat(state.best_params[None], k, axis=0)
-    stages, values, _, first = evaluator.scores(params, keys, keep_first=True)
+    # one call: the best on its k environments, then the perturbed copies on the first
+    copies = perturbed_copies(
+        state.best_params, jax.random.fold_in(base, _EVAL_TAG + 1), n, PERTURBED_RELATIVE
+    )
+    params = jnp.concatenate([jnp.repeat(state.best_params[None], k, axis=0), copies])
+    env_keys = jnp.concatenate([keys, jnp.repeat(keys[0][None], n, axis=0)])
+    stages, values, _, first = evaluator.scores(params, env_keys, keep_first=True)
+    fell, dist = evaluator.last_fell[k:], evaluator.last_walk[0][k:]
+    stages, values = stages[:k], values[:k]
     ws, wv = objective_mod.worst_of_k(jnp.asarray(stages)[None], jnp.asarray(values)[None])
     trace, events, summary = first
     meas = jax.tree.map(np.asarray, compute_measures(trace, events, summary))
@@ -268,7 +291,7 @@ def final_evaluation(
         value=json_safe(float(wv[0])),
         worst_of=k,
     )
-    report.update(perturbation_check(evaluator, state.best_params, keys[0], state.key))
+    report.update(perturbation_report(fell, dist, PERTURBED_RELATIVE))
     report["perturbed_reference_fell"] = bool(np.asarray(summary.fell))
     files = {}
     if video:
