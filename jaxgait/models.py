@@ -28,6 +28,8 @@ from typing import Any
 from jaxgait.control.commands import Command
 from jaxgait.control.fbl import FBL_CONTROLLER
 from jaxgait.control.fblplus import FBLPLUS_CONTROLLER
+from jaxgait.control.gait import GaitConfig
+from jaxgait.control.gh2010 import GH2010_CONTROLLER
 from jaxgait.control.interface import Controller
 from jaxgait.control.spinal import FBL_NET, spinal_controller
 from jaxgait.control.wang import WANG_CONTROLLER
@@ -124,6 +126,22 @@ register(
     )
 )
 register(planar_spec(WANG_CONTROLLER))
+
+
+def _gh2010_build(timestep=None):
+    return planar_model(GH2010_CONTROLLER, timestep, gait=GaitConfig(load_signal="thigh_sheet"))
+
+
+register(
+    ModelSpec(
+        name="fbl_gh2010",
+        family="planar",
+        description=GH2010_CONTROLLER.description,
+        table=GH2010_CONTROLLER.table,
+        commands=GH2010_CONTROLLER.commands,
+        build=_gh2010_build,
+    )
+)
 
 
 def model_names(family: str | None = None) -> tuple[str, ...]:

@@ -87,6 +87,8 @@ METABOLIC_MODELS = ("thesis", "wang2012")
 #: stance foot flat, hence a 5 deg trunk lean); geyer_reference.md section 4.
 POSES = {
     "geyer": (5.0, (5.0, 5.0, 5.0), (40.0, 5.0, 0.0)),
+    # Thatte's ControlParams.m: the same but the swing hip at 150 deg (section 4)
+    "thatte": (5.0, (5.0, 5.0, 5.0), (30.0, 5.0, 0.0)),
 }
 
 
@@ -170,6 +172,23 @@ class Model:
         trunk = int(b.mj_model.body("trunk").id)
         legq = np.array([[b.qpos_adr(j) for j in leg] for leg in LEG_JOINTS], np.int32)
         return sites, feet, trunk, legq
+
+    @cached_property
+    def thigh_ids(self) -> np.ndarray:
+        """Body ids of the right and left thighs."""
+        return np.array([self.body.mj_model.body(n).id for n in ("thigh_r", "thigh_l")])
+
+    @cached_property
+    def sheet_masses(self) -> tuple[float, float]:
+        """(mass of a leg below the thigh pressure sheet, HAT mass) [kg] for the sheet's load
+        signal (:func:`~jaxgait.control.gait.thigh_sheet_load`): the thigh split by length at
+        ``gait.sheet_below_hip`` below the hip, plus shank and foot."""
+        m = self.body.mj_model
+        thigh, shank, foot = (m.body(f"{n}_r") for n in ("thigh", "shank", "foot"))
+        length = float(np.linalg.norm(shank.pos))  # hip to knee
+        below = 1.0 - self.gait.sheet_below_hip / length
+        leg = float(thigh.mass[0]) * below + float(shank.mass[0]) + float(foot.mass[0])
+        return leg, float(m.body("trunk").mass[0])
 
     @cached_property
     def dof_parents(self) -> tuple[int, ...]:
@@ -288,14 +307,16 @@ def planar_model(
     name: str | None = None,
     muscles: MuscleTable | None = None,
     metabolic: str | None = None,
+    gait: GaitConfig | None = None,
 ) -> Model:
     """``controller`` on the planar Geyer body (``models/fbl_planar.xml``).
 
     ``muscles`` defaults to the table of the controller's muscle count
     (:data:`MUSCLE_TABLES`: 7 -> GEYER7, 8 -> WANG8).  ``timestep`` [s] overrides the MJCF's
-    physics step (delays must stay whole steps).  ``metabolic`` (:attr:`Model.metabolic`)
-    defaults to Wang's model for the 8-muscle table (Wang's controller is optimised on his
-    effort) and to the thesis's for the others.
+    physics step (delays must stay whole steps).  ``gait`` is the phase detection and the
+    leg-load signal (default :class:`~jaxgait.control.gait.GaitConfig`).  ``metabolic``
+    (:attr:`Model.metabolic`) defaults to Wang's model for the 8-muscle table (Wang's
+    controller is optimised on his effort) and to the thesis's for the others.
     """
     if muscles is None:
         if controller.n_muscles not in MUSCLE_TABLES:
@@ -314,4 +335,5 @@ def planar_model(
         controller=controller,
         name=name or controller.name,
         metabolic=metabolic,
+        gait=GaitConfig() if gait is None else gait,
     )

@@ -26,7 +26,7 @@ import numpy as np
 from jaxgait.body.joints import SoftLimits, q_to_phi
 from jaxgait.control import commands as cmd_mod
 from jaxgait.control.commands import CommandLaw, Schedule
-from jaxgait.control.gait import init_gait, update_gait
+from jaxgait.control.gait import init_gait, thigh_sheet_load, update_gait
 from jaxgait.control.interface import Sensors
 from jaxgait.core.linalg import spd_solve
 from jaxgait.muscles import effort as effort_mod
@@ -68,13 +68,15 @@ def sensors_of(
     pts,
     com_vel,
     ankle_vel,
+    grf=None,
 ) -> Sensors:
     """The shared :class:`~jaxgait.control.interface.Sensors` of one step.
 
     Args: time [s]; f_mtu, l_ce (2, M) [N, m]; phi, dphi (2, 3) GH angles and rates; qpos,
     qvel the generalised state; gait: the updated :class:`~jaxgait.control.gait.GaitState`;
     touchdown, ds (2,) bool; pts (9, 2) the points of :meth:`Model.points`; com_vel (2,);
-    ankle_vel (2, 2) the velocities of the ankles (points 4 and 5).
+    ankle_vel (2, 2) the velocities of the ankles (points 4 and 5); grf (2, 2) the ground
+    reaction (x, z) per leg [N], read by the thigh-sheet load signal (``model.gait``).
     """
     table = model.muscles
     dtype = qpos.dtype
@@ -88,7 +90,7 @@ def sensors_of(
         dphi=dphi,
         trunk=qpos[2],
         dtrunk=qvel[2],
-        load=gait.load,
+        load=leg_load(model, qpos, gait, grf),
         stance=gait.stance,
         touchdown=touchdown,
         double_support=ds,
@@ -101,6 +103,17 @@ def sensors_of(
         ankle_vel=ankle_vel,
         dleg=(pts[7, 0] - pts[4:6, 0]) / model.leg_length,
     )
+
+
+def leg_load(model: Model, qpos, gait, grf):
+    """The reflexes' leg-load signal (2,): the gait detection's filtered F_z / (M g), or with
+    ``model.gait.load_signal == "thigh_sheet"`` Geyer's thigh pressure sheet
+    (:func:`~jaxgait.control.gait.thigh_sheet_load`, in HAT weights) from ``grf`` (2, 2)."""
+    if model.gait.load_signal == "grf":
+        return gait.load
+    _, angles = model.body.frames(qpos)
+    m_below, m_hat = model.sheet_masses
+    return thigh_sheet_load(grf, angles[model.thigh_ids], m_below, m_hat)
 
 
 # ------------------------------------------------------------------------- init
@@ -167,6 +180,8 @@ def initial_state(
         pts,
         jac[7] @ qvel,
         jac[4:6] @ qvel,
+        # the stance leg carries the body's weight (the filtered load's start, 1 and 0 BW)
+        jnp.asarray([[0.0, model.mass * 9.81], [0.0, 0.0]], dtype),
     )
     ctrl_state = ctrl.init(ctrl, sensors0, model.dt)
     law_state = None
@@ -352,6 +367,7 @@ def step(
         pts,
         vel[7],
         vel[4:6],
+        grf,
     )
     command = scheduled_command(model, commands, s.t, dtype)
     law_state = s.command_state
