@@ -198,6 +198,46 @@ def test_early_stop_ends_the_run_once_its_best_walks_at_the_target_speed(tmp_pat
     _same_run(cont, whole)
 
 
+def test_confirmed_best_is_the_one_the_final_evaluation_finds(tmp_path):
+    """confirm_best on a gait that walks: the confirmation passes, so the run is the run
+    without it, and the final evaluation (the same batch) finds the best and its copies up."""
+    exp = tiny(
+        "quickstart",
+        init="fbl_walk",
+        optimiser_options={"sigma_init": 1e-4},
+        iterations=2,
+        confirm_best=False,
+    )
+    plain = tr.train(exp, tmp_path / "plain", progress=None, plots=False, video=False)
+    conf = exp.replace(confirm_best=True)
+    assert conf.to_dict()["confirm_best"] is True and "confirm_best" not in exp.to_dict()
+    res = tr.train(conf, tmp_path / "conf", progress=None, plots=False, video=False)
+    _same_run(res, plain)
+    assert res.measures["perturbed_survival"] == 1.0
+    assert not res.measures["perturbed_reference_fell"]
+
+
+def test_a_best_that_fails_its_confirmation_is_not_taken(tmp_path, monkeypatch):
+    import jaxgait.train.loop as loop
+
+    exp = tiny(
+        "quickstart",
+        init="fbl_walk",
+        optimiser_options={"sigma_init": 1e-4},
+        iterations=2,
+        confirm_best=True,
+    )
+    answers = [False, True]  # the first walker is refused, the second taken
+    monkeypatch.setattr(loop, "confirm_walk", lambda *a: answers.pop(0))
+    lines = []
+    res = tr.train(exp, tmp_path / "run", progress=quiet(lines), plots=False, video=False)
+    assert not answers  # one confirmation per walking new best
+    assert any("it 1: the candidate that walked 1.0 s falls" in s for s in lines)
+    h = res.history
+    assert h[0]["best_stage"] == -1 and not np.isfinite(h[0]["best_value"])  # nothing taken
+    assert np.isfinite(h[1]["best_value"]) and res.best_walk is not None
+
+
 def test_early_stop_rule():
     exp = tiny("quickstart", duration=20.0, stop_speed_tol=0.05)
     reach = lambda walk: tr.walk_reaches_target(exp, walk)

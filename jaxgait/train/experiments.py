@@ -48,9 +48,11 @@ flat ground and 120 m on the perturbed environments, entrance conditions of Tabl
   (``upright``) and its speed error counts 30 times (``speed`` + ``upright_speed``), more
   than d = v t rewards speed (20 m per m/s), so the optimum is a 20 s walk at v*.  16
   candidates are one direct call (no lane queue), so the iterations, the final evaluation
-  and the perturbation check share one compiled rollout.  The run stops at the first
-  iteration whose best walks the 20 s within 0.05 m/s of v* (``stop_speed_tol``); the 40
-  iterations are a cap.
+  and the perturbation check share one compiled rollout.  A candidate that walks the 20 s
+  becomes the best only if it and 8 copies perturbed by 1e-6 stay up in the final
+  evaluation's batch (``confirm_best``: a walk that owes nothing to rounding).  The run stops
+  at the first iteration whose best walks the 20 s within 0.05 m/s of v* (``stop_speed_tol``);
+  the 40 iterations are a cap.
 * fbl_humanlike_cmaes: the human-likeness goals of ``fbl_humanlike`` as one weighted sum for
   CMA-ES (16 x 60, 20 s rollouts, sigma 0.05 of the ranges, from ``fbl_walk``): quickstart's
   walk terms, which dominate, plus 10 ``grf_peak`` (per BW of stance peak above 1.3 BW),
@@ -181,6 +183,11 @@ class Experiment:
         whose best rollout walked the whole ``duration`` without falling at a mean speed
         within this of ``v_desired``; None (default): every iteration runs.  Written to the
         config only when set, so configs written before it existed still match.
+      confirm_best: a candidate whose rollout lasted the whole ``duration`` without falling
+        becomes the run's best only if it and its copies perturbed by 1e-6 (relative) all
+        stay up in the final evaluation's batch (:func:`jaxgait.train.results.confirm_walk`),
+        so the best is not a gait that walks by the grace of float32 rounding; one extra
+        call per such candidate.  Written to the config only when true.
     """
 
     name: str
@@ -205,6 +212,7 @@ class Experiment:
     batch_size: int | None = None
     lanes: int | None = None
     stop_speed_tol: float | None = None
+    confirm_best: bool = False
 
     def __post_init__(self):
         s = lambda k, v: object.__setattr__(self, k, v)
@@ -274,6 +282,10 @@ class Experiment:
                 raise ExperimentError(
                     f"invalid stop_speed_tol={tol!r}: the early stop needs targets.v_desired"
                 )
+        if not isinstance(self.confirm_best, bool):
+            raise ExperimentError(
+                f"invalid confirm_best={self.confirm_best!r}: must be true or false"
+            )
         if not isinstance(self.stage_cap, bool):
             raise ExperimentError(f"invalid stage_cap={self.stage_cap!r}: must be true or false")
         if self.init is not None and (not isinstance(self.init, str) or not self.init):
@@ -336,7 +348,7 @@ class Experiment:
             if f.name.startswith("_"):
                 continue
             v = getattr(self, f.name)
-            if f.name == "stop_speed_tol" and v is None:
+            if (f.name, v) in (("stop_speed_tol", None), ("confirm_best", False)):
                 continue  # unset: configs written before the field existed stay equal
             if f.name in ("env_overrides", "optimiser_options", "targets", "weights"):
                 v = dict(v)
@@ -602,6 +614,7 @@ EXPERIMENTS: dict[str, Experiment] = {
             iterations=40,
             init="table",
             stop_speed_tol=0.05,
+            confirm_best=True,
         ),
         _wang("wang_walk_1p25", 1.25, "table", "nwalk from the Geyer-Herr gains", iterations=80),
         _wang("wang_walk_1p0", 1.0, "wang_walk_1p25", "swalk from nwalk", iterations=40),

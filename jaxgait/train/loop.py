@@ -20,8 +20,10 @@ from jaxgait.train.experiments import (
     resolve_experiment,
 )
 from jaxgait.train.results import (
+    PERTURBED_RELATIVE,
     _atomic_write,
     _prepare_out,
+    confirm_walk,
     final_evaluation,
     measures_text,
     plot_stage_progress,
@@ -36,6 +38,7 @@ from jaxgait.train.state import (
     history_length,
     history_rows,
     initial_state,
+    keep_best,
     resize_history,
     tell_population,
 )
@@ -225,14 +228,24 @@ def _shared_iteration(runs: Sequence[_Run], evaluator: PopulationEvaluator) -> N
     scored = evaluator.evaluate_many([(a.population, a.env_key, a.max_stage) for a in asked])
     jax.block_until_ready([s for s, _, _ in scored])
     secs = time.perf_counter() - t0
-    walks = evaluator.last_walks
+    walks, stats = evaluator.last_walks, evaluator.last_stats  # before any confirmation
     for r, a, (stage, value, _), walk in zip(todo, asked, scored, walks, strict=True):
         state, improved = tell_population(
-            r.exp, r.strategy, r.objective, r.state, a, stage, value, secs, evaluator.last_stats
+            r.exp, r.strategy, r.objective, r.state, a, stage, value, secs, stats
         )
         if improved:  # the parameter set tell_population took as the new best
             i = int(stage_argbest(stage, value))
-            r.best_walk = (float(walk[0][i]), float(walk[1][i]))
+            w = (float(walk[0][i]), float(walk[1][i]))
+            if r.exp.confirm_best and w[1] >= r.exp.duration - 1e-3:
+                if not confirm_walk(r.exp, evaluator, state.best_params, state.key):
+                    r.say(
+                        f"{r.exp.name}{r.label} it {int(state.iteration)}: the candidate that "
+                        f"walked {w[1]:.1f} s falls with a perturbation of "
+                        f"{PERTURBED_RELATIVE:g}; the best stays the previous one"
+                    )
+                    state, improved = keep_best(state, r.state), False
+        if improved:
+            r.best_walk = w
         r.record(state, improved)
 
 

@@ -245,6 +245,34 @@ def best_video(out: Path, exp: Experiment, trace, env, mass: float, backend: str
     )
 
 
+def evaluation_keys(exp: Experiment, key) -> jax.Array:
+    """The ``worst_of_k`` environment keys of the final evaluation of a run with ``key``."""
+    return jax.random.split(jax.random.fold_in(key, _EVAL_TAG), exp.worst_of_k)
+
+
+def evaluation_batch(exp: Experiment, evaluator: PopulationEvaluator, params, key):
+    """The final evaluation's one call: ``params`` on its k environments
+    (:func:`evaluation_keys`), then :data:`PERTURBED_COPIES` copies of it perturbed by
+    :data:`PERTURBED_RELATIVE` on the first.  Returns ``(stage, value, valid, first)`` of all
+    k + n rollouts (``first``: the trace of row 0); their falls and walks are left in
+    ``evaluator.last_fell`` and ``evaluator.last_walk``.  The same batch in the same rows
+    gives the same rollouts, so a confirmation (:func:`confirm_walk`) is what the final
+    evaluation will find."""
+    k, n = exp.worst_of_k, PERTURBED_COPIES
+    keys = evaluation_keys(exp, key)
+    copies = perturbed_copies(params, jax.random.fold_in(key, _EVAL_TAG + 1), n, PERTURBED_RELATIVE)
+    batch = jnp.concatenate([jnp.repeat(params[None], k, axis=0), copies])
+    env_keys = jnp.concatenate([keys, jnp.repeat(keys[0][None], n, axis=0)])
+    return evaluator.scores(batch, env_keys, keep_first=True)
+
+
+def confirm_walk(exp: Experiment, evaluator: PopulationEvaluator, params, key) -> bool:
+    """Whether ``params`` and its perturbed copies all stay up in :func:`evaluation_batch`
+    (the check of ``exp.confirm_best``): a gait that does not owe its walk to rounding."""
+    evaluation_batch(exp, evaluator, params, key)
+    return not bool(np.any(evaluator.last_fell))
+
+
 def final_evaluation(
     exp: Experiment,
     evaluator: PopulationEvaluator,
@@ -264,16 +292,9 @@ def final_evaluation(
     """
     from jaxgait.analysis.measures import MEASURE_UNITS, compute_measures
 
-    k, n = exp.worst_of_k, PERTURBED_COPIES
-    base = state.key
-    keys = jax.random.split(jax.random.fold_in(base, _EVAL_TAG), k)
-    # one call: the best on its k environments, then the perturbed copies on the first
-    copies = perturbed_copies(
-        state.best_params, jax.random.fold_in(base, _EVAL_TAG + 1), n, PERTURBED_RELATIVE
-    )
-    params = jnp.concatenate([jnp.repeat(state.best_params[None], k, axis=0), copies])
-    env_keys = jnp.concatenate([keys, jnp.repeat(keys[0][None], n, axis=0)])
-    stages, values, _, first = evaluator.scores(params, env_keys, keep_first=True)
+    k = exp.worst_of_k
+    keys = evaluation_keys(exp, state.key)
+    stages, values, _, first = evaluation_batch(exp, evaluator, state.best_params, state.key)
     fell, dist = evaluator.last_fell[k:], evaluator.last_walk[0][k:]
     stages, values = stages[:k], values[:k]
     ws, wv = objective_mod.worst_of_k(jnp.asarray(stages)[None], jnp.asarray(values)[None])

@@ -153,6 +153,19 @@ def history_length(state: TrainState) -> int:
     return int(state.hist_best_stage.shape[0])
 
 
+def keep_best(new: TrainState, old: TrainState) -> TrainState:
+    """``new`` (the state after an iteration of ``old``) with ``old``'s best kept: the best
+    parameters, stage and value, and the best-so-far entries of that iteration."""
+    it = int(old.iteration)
+    return new.replace(
+        best_params=old.best_params,
+        best_stage=old.best_stage,
+        best_value=old.best_value,
+        hist_best_stage=new.hist_best_stage.at[it].set(old.best_stage),
+        hist_best_value=new.hist_best_value.at[it].set(old.best_value),
+    )
+
+
 def resize_history(state: TrainState, n: int) -> TrainState:
     """``state`` with history arrays for ``n`` iterations: the recorded iterations kept, new
     rows filled as :func:`initial_state` fills them (so a run extended from N to M
