@@ -33,6 +33,16 @@ def test_fbl_walk_walks_20s_on_flat_ground(fbl_walk):
     assert m["n_steps"] >= 20
 
 
+def test_fbl_humanlike_walks_20s_without_the_forefoot_slap():
+    """The human-like preset walks 20 s at 1.2-1.4 m/s, its stance GRF peaks under 2.5 BW
+    (fbl_walk's forefoot slaps to 3.7-4.9 BW) and its vertical GRF correlates with Winter's."""
+    model, vec, _ = load_preset("fbl_humanlike")
+    assert model == "fbl"
+    m = _walk(vec, 20.0)
+    assert not m["fell"] and 1.2 <= m["mean_speed_mps"] <= 1.4
+    assert m["grf_peak_max_bw"] < 2.5 and m["grf_corr"] > 0.85
+
+
 @pytest.mark.slow
 def test_timestep_convergence(fbl_walk):
     """0.5 ms (the default) vs 0.25 ms: the same 5 s gait measures within 5 %.
