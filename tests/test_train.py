@@ -39,6 +39,11 @@ def tiny(name, **kw):
     return get_experiment(name, **{**TINY, **kw})
 
 
+def walking_quickstart(**kw):
+    """quickstart from fbl_walk with a tiny step size: every candidate walks its 1 s."""
+    return tiny("quickstart", init="fbl_walk", optimiser_options={"sigma_init": 1e-4}, **kw)
+
+
 def fblplus_available() -> bool:
     try:
         tr.get_model("fblplus")
@@ -172,14 +177,7 @@ def test_resume_with_more_iterations_extends_a_finished_run(tmp_path):
 
 
 def test_early_stop_ends_the_run_once_its_best_walks_at_the_target_speed(tmp_path):
-    # from fbl_walk with a tiny step size every candidate walks the 1 s near 1.3 m/s
-    exp = tiny(
-        "quickstart",
-        init="fbl_walk",
-        optimiser_options={"sigma_init": 1e-4},
-        iterations=3,
-        stop_speed_tol=0.3,
-    )
+    exp = walking_quickstart(iterations=3, stop_speed_tol=0.3)
     lines = []
     res = tr.train(exp, tmp_path / "run", progress=quiet(lines), plots=False, video=False)
     assert res.iterations_done == 1 and res.complete and len(res.history) == 1
@@ -201,13 +199,7 @@ def test_early_stop_ends_the_run_once_its_best_walks_at_the_target_speed(tmp_pat
 def test_confirmed_best_is_the_one_the_final_evaluation_finds(tmp_path):
     """confirm_best on a gait that walks: the confirmation passes, so the run is the run
     without it, and the final evaluation (the same batch) finds the best and its copies up."""
-    exp = tiny(
-        "quickstart",
-        init="fbl_walk",
-        optimiser_options={"sigma_init": 1e-4},
-        iterations=2,
-        confirm_best=False,
-    )
+    exp = walking_quickstart(iterations=2, confirm_best=False)
     plain = tr.train(exp, tmp_path / "plain", progress=None, plots=False, video=False)
     conf = exp.replace(confirm_best=True)
     assert conf.to_dict()["confirm_best"] is True and "confirm_best" not in exp.to_dict()
@@ -220,13 +212,7 @@ def test_confirmed_best_is_the_one_the_final_evaluation_finds(tmp_path):
 def test_a_best_that_fails_its_confirmation_is_not_taken(tmp_path, monkeypatch):
     import jaxgait.train.loop as loop
 
-    exp = tiny(
-        "quickstart",
-        init="fbl_walk",
-        optimiser_options={"sigma_init": 1e-4},
-        iterations=2,
-        confirm_best=True,
-    )
+    exp = walking_quickstart(iterations=2, confirm_best=True)
     answers = [False, True]  # the first walker is refused, the second taken
     monkeypatch.setattr(loop, "confirm_walk", lambda *a: answers.pop(0))
     lines = []
