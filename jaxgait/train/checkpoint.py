@@ -19,7 +19,7 @@ Guarantees:
 * :meth:`RunCheckpoints.restore` checks the saved config against the current one and raises
   :class:`CheckpointMismatchError` naming both experiments (or the differing fields), unless
   its ``accept`` callback takes the saved config (``train`` accepts a different number of
-  iterations: :func:`iterations_only_difference`). A step
+  iterations: :func:`extension_difference`). A step
   that cannot be read (corrupt, truncated) is reported and the previous readable step is used;
   if none is readable, :class:`CheckpointError` lists every step tried and why.
 """
@@ -72,7 +72,7 @@ def config_differences(saved: Mapping, current: Mapping, prefix: str = "") -> li
 EXTENSION_FIELDS = ("iterations", "stop_speed_tol")
 
 
-def iterations_only_difference(saved: Mapping, current: Mapping) -> int | None:
+def extension_difference(saved: Mapping, current: Mapping) -> int | None:
     """The saved ``experiment.iterations`` if the two config documents differ only in
     :data:`EXTENSION_FIELDS` (the number of iterations, the early stop), else None
     (identical documents, or any other difference)."""

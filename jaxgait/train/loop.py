@@ -13,7 +13,7 @@ import numpy as np
 
 from jaxgait.optim import stage_argbest
 from jaxgait.train import objective as objective_mod
-from jaxgait.train.checkpoint import RunCheckpoints, iterations_only_difference
+from jaxgait.train.checkpoint import RunCheckpoints, extension_difference
 from jaxgait.train.evaluator import PopulationEvaluator
 from jaxgait.train.experiments import (
     Experiment,
@@ -91,7 +91,7 @@ class _Run:
         abstract = lambda state: jax.tree.map(to_shape_dtype_struct, state)
 
         def accept(saved):
-            n = iterations_only_difference(saved, self.doc)
+            n = extension_difference(saved, self.doc)
             return None if n is None else abstract(resize_history(self.state, n))
 
         restored = self.ckpt.restore(abstract(self.state), accept=accept)
@@ -236,7 +236,7 @@ def _shared_iteration(runs: Sequence[_Run], evaluator: PopulationEvaluator) -> N
         if improved:  # the parameter set tell_population took as the new best
             i = int(stage_argbest(stage, value))
             w = (float(walk[0][i]), float(walk[1][i]))
-            if r.exp.confirm_best and w[1] >= r.exp.duration - 1e-3:
+            if r.exp.confirm_best and walked_whole(r.exp, w):
                 if not confirm_walk(r.exp, evaluator, state.best_params, state.key):
                     r.say(
                         f"{r.exp.name}{r.label} it {int(state.iteration)}: the candidate that "
@@ -378,12 +378,16 @@ def walk_reaches_target(exp: Experiment, walk: tuple[float, float] | None) -> bo
     """Whether a rollout that walked ``walk`` = (distance [m], time [s]) meets the early stop
     of ``exp``: it lasted the whole ``exp.duration`` (to 1 ms: no fall) at a mean speed
     within ``exp.stop_speed_tol`` of ``v_desired``.  False without an early stop."""
-    if exp.stop_speed_tol is None or walk is None:
+    if exp.stop_speed_tol is None or not walked_whole(exp, walk):
         return False
     d, t = walk
-    if not (t >= exp.duration - 1e-3 and t > 0):
-        return False
     return abs(d / t - dict(exp.targets)["v_desired"]) <= exp.stop_speed_tol
+
+
+def walked_whole(exp: Experiment, walk: tuple[float, float] | None) -> bool:
+    """Whether a rollout that walked ``walk`` = (distance [m], time [s]) lasted the whole
+    ``exp.duration`` (to 1 ms: it did not fall)."""
+    return walk is not None and walk[1] > 0 and walk[1] >= exp.duration - 1e-3
 
 
 def _saved_walk(best_json: Path) -> tuple[float, float] | None:
