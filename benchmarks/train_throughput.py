@@ -40,15 +40,18 @@ def step_throughput(lanes: int, steps: int = 200, repeats: int = 3) -> float:
     return lanes * steps / _best_seconds(f, arg, repeats)
 
 
-def compare_queue(name: str, particles: int | None, lane_counts) -> int:
+def compare_queue(name: str, particles: int | None, lane_counts, drains=None) -> int:
     """Direct calls against the queue over each lane count on one generation: wall time,
-    lane counts, and the candidates whose stage differs from the direct call's."""
+    lane counts, and the candidates whose stage differs from the direct call's.  ``drains``:
+    drain widths to compare for each lane count (e.g. ``[(), (4, 1)]``; default the
+    evaluator's own)."""
     import jax
     import jax.numpy as jnp
     import numpy as np
 
     from jaxgait import presets
     from jaxgait.train import PopulationEvaluator, get_experiment
+    from jaxgait.train import evaluator as evaluator_mod
 
     exp = get_experiment(name, **({} if particles is None else {"particles": particles}))
     _, vec, _ = presets.load_preset("fbl_walk")
@@ -59,10 +62,19 @@ def compare_queue(name: str, particles: int | None, lane_counts) -> int:
     pop = jnp.asarray(np.clip(pop, table.lower, table.upper), jnp.float32)
     keys = jax.random.split(jax.random.PRNGKey(1), n)
     direct = None
-    cases = [("direct", exp.replace(lanes=0))]
-    cases += [(f"queued over {k} lanes", exp.replace(lanes=k)) for k in lane_counts]
-    for label, e in cases:
-        ev = PopulationEvaluator(e)
+    own = evaluator_mod.drain_widths
+    cases = [("direct", exp.replace(lanes=0), None)]
+    for k in lane_counts:
+        for d in drains or [None]:
+            widths = own(k) if d is None else tuple(w for w in d if w < k)
+            label = f"queued over {k} lanes" + (f", drain {widths}" if widths else "")
+            cases.append((label, exp.replace(lanes=k), widths))
+    for label, e, widths in cases:
+        evaluator_mod.drain_widths = own if widths is None else (lambda lanes, w=widths: w)
+        try:
+            ev = PopulationEvaluator(e)
+        finally:
+            evaluator_mod.drain_widths = own
         for _ in range(2):  # the first call compiles
             t = time.perf_counter()
             stage, value, _ = ev.scores(pop, keys)
@@ -70,7 +82,7 @@ def compare_queue(name: str, particles: int | None, lane_counts) -> int:
         st = ev.last_stats
         direct = stage if direct is None else direct
         print(
-            f"{label:24s} {secs:7.1f} s  utilisation {float(st.utilisation):.3f}  "
+            f"{label:40s} {secs:7.1f} s  utilisation {float(st.utilisation):.3f}  "
             f"busy {int(st.busy):,}  total {int(st.total):,} lane-steps  "
             f"{int(st.busy) / secs:,.0f} busy lane-steps/s  "
             f"stage differs from direct: {int((stage != direct).sum())} of {n}",
@@ -149,11 +161,21 @@ def main(argv=None) -> int:
         "runs/full/exp3/history.csv) against the full-size targets; with --lanes also the "
         "bare step at that lane count",
     )
+    ap.add_argument(
+        "--drain",
+        nargs="+",
+        metavar="WIDTHS",
+        help="with --compare-queue: drain widths to compare, comma-separated per case "
+        "('none' for no drain), e.g. --drain none 4,1 8,4,2,1",
+    )
     a = ap.parse_args(argv)
     if a.history:
         return from_history(a.history, a.lanes)
     if a.compare_queue:
-        return compare_queue(a.experiment, a.particles, a.compare_queue)
+        drains = None
+        if a.drain:
+            drains = [() if d == "none" else tuple(int(w) for w in d.split(",")) for d in a.drain]
+        return compare_queue(a.experiment, a.particles, a.compare_queue, drains)
 
     from jaxgait.train import get_experiment, train
     from jaxgait.train.evaluator import PopulationEvaluator

@@ -31,9 +31,9 @@ def _finish(trace, events, summary, aux):
     return {**jax.vmap(_one)(trace, events, summary), "tag": aux}
 
 
-@functools.partial(jax.jit, static_argnums=(0, 4))
-def _scheduled(model, params, env, tags, lanes):
-    return lane_rollouts(model, CFG, params, env, _finish, lanes, aux=tags)
+@functools.partial(jax.jit, static_argnums=(0, 4, 5))
+def _scheduled(model, params, env, tags, lanes, drain=()):
+    return lane_rollouts(model, CFG, params, env, _finish, lanes, aux=tags, drain=drain)
 
 
 @pytest.fixture(scope="module")
@@ -49,11 +49,15 @@ def mixed(fbl_model):
     return params, env, jax.device_get(direct(params, env))
 
 
-@pytest.mark.parametrize("lanes", [2, 8], ids=["queue_longer", "queue_shorter"])
-def test_scheduled_equals_direct_per_candidate(fbl_model, mixed, lanes):
+@pytest.mark.parametrize(
+    "lanes, drain",
+    [(2, ()), (8, ()), (3, (2, 1))],
+    ids=["queue_longer", "queue_shorter", "drained_to_2_then_1"],
+)
+def test_scheduled_equals_direct_per_candidate(fbl_model, mixed, lanes, drain):
     params, env, ref = mixed
     tags = 10 * jnp.arange(params.shape[0])
-    res, stats = jax.device_get(_scheduled(fbl_model, params, env, tags, lanes))
+    res, stats = jax.device_get(_scheduled(fbl_model, params, env, tags, lanes, drain))
     np.testing.assert_array_equal(res["tag"], np.asarray(tags))  # each result in its slot
     assert ref["fell"].any() and not ref["fell"].all()  # the batch mixes fallers and walkers
     np.testing.assert_array_equal(res["fell"], ref["fell"])
@@ -81,10 +85,29 @@ def test_utilisation_of_a_hand_made_queue(fbl_model, mixed):
     np.testing.assert_allclose(np.asarray(res["duration"]), 1.0, atol=1e-6)
 
 
+def test_drained_tail_runs_on_fewer_lanes(fbl_model):
+    """The hand-made queue with a drain to one lane: after 8 chunks the queue is empty and
+    only rollout 4 is active, so its last 4 chunks run on one lane: 20 busy lane-chunks of
+    8 x 2 + 4 x 1 = 20 (utilisation 1), still 12 chunks, every rollout 1 s."""
+    _, vec, _ = presets.load_preset("fbl_walk")
+    params = jnp.asarray(np.stack([vec] * 5), jnp.float32)
+    env = envs.make_env_batch("flat", jax.random.split(jax.random.PRNGKey(0), 5))
+    res, stats = _scheduled(fbl_model, params, env, jnp.arange(5), 2, (1,))
+    per_chunk = round(0.25 / fbl_model.dt)
+    assert int(stats.chunks) == 12
+    assert int(stats.busy) == 20 * per_chunk and int(stats.total) == 20 * per_chunk
+    np.testing.assert_array_equal(np.asarray(res["tag"]), np.arange(5))
+    np.testing.assert_allclose(np.asarray(res["duration"]), 1.0, atol=1e-6)
+    assert not np.asarray(res["fell"]).any()
+
+
 def test_lanes_must_be_positive(fbl_model, mixed):
     params, env, _ = mixed
     with pytest.raises(ValueError, match="n_lanes"):
         lane_rollouts(fbl_model, CFG, params, env, _finish, 0)
+    for bad in [(2,), (1, 1), (0,)]:  # not below the lanes, not decreasing, not >= 1
+        with pytest.raises(ValueError, match="drain"):
+            lane_rollouts(fbl_model, CFG, params, env, _finish, 2, drain=bad)
 
 
 @pytest.mark.slow

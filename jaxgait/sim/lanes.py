@@ -13,8 +13,15 @@ Each rollout starts at a chunk boundary of its lane and runs the same chunks as
 the rollout alone up to the rounding of a different batch (the physics is vectorised over a
 different set of lanes).
 
+Once the queue is empty the generation's tail is its last, longest rollouts (the walkers)
+while the other lanes idle.  With ``drain`` widths the program then shrinks: once no more
+rollouts are active than the next width, the active lanes are gathered into that many lanes
+and run on in a narrower (cheaper) batch, as many times as ``drain`` names widths.  Each width
+is its own compiled chunk program.
+
 Lane utilisation = busy lane-steps / all lane-steps, counted in whole chunks (a lane is busy
-during a chunk if it holds a rollout that was not done when the chunk began).
+during a chunk if it holds a rollout that was not done when the chunk began); the lanes of a
+drained phase count at that phase's width.
 """
 
 from __future__ import annotations
@@ -75,6 +82,7 @@ def lane_rollouts(
     n_lanes: int,
     commands=None,
     aux=None,
+    drain=(),
 ):
     """Run the Q rollouts of ``params`` (Q, D) on ``env`` (batch of Q) over ``n_lanes`` lanes.
 
@@ -88,6 +96,8 @@ def lane_rollouts(
       n_lanes: L, the lanes run side by side (static; more than Q leaves some idle).
       aux: optional pytree with a leading axis of Q, each rollout's row handed to ``finish``
         (e.g. a per-candidate stage cap).
+      drain: decreasing lane counts (static, each below ``n_lanes``) the program shrinks to
+        once the queue is empty and no more rollouts are active than that count; () never.
 
     Returns:
       ``(results, stats)``: ``finish``'s outputs stacked over the Q rollouts in queue order,
@@ -97,6 +107,13 @@ def lane_rollouts(
     lanes = int(n_lanes)
     if lanes < 1:
         raise ValueError(f"n_lanes must be at least 1, got {n_lanes}")
+    widths = tuple(int(w) for w in drain)
+    if any(w < 1 for w in widths) or any(
+        b >= a for a, b in zip((lanes, *widths), widths, strict=False)
+    ):
+        raise ValueError(
+            f"drain must be decreasing lane counts from 1 to below n_lanes={lanes}, got {drain}"
+        )
     log_every, rpc, n_chunks = rollout_steps(cfg, model.dt)
     n_rows = math.ceil(cfg.duration / cfg.log_dt)
     steps_per_chunk = rpc * log_every
@@ -155,7 +172,7 @@ def lane_rollouts(
         )(trace, rows, k)
         stats = LaneStats(
             busy=stats.busy + active.sum().astype(jnp.int32) * steps_per_chunk,
-            total=stats.total + lanes * steps_per_chunk,
+            total=stats.total + active.shape[0] * steps_per_chunk,
             chunks=stats.chunks + 1,
         )
         k = k + 1
@@ -179,11 +196,41 @@ def lane_rollouts(
         k = jnp.where(take, 0, k)
         return item, lane_in, active, k, s, trace, nxt, results, stats
 
-    def cond(carry):
-        return jnp.any(carry[2])
+    def cond_until(width):
+        """Run while a lane is active and, before a drain to ``width`` lanes, until the
+        queue is empty with at most ``width`` rollouts active."""
+
+        def cond(carry):
+            active, nxt = carry[2], carry[6]
+            go = jnp.any(active)
+            if width is not None:
+                go = go & ~((nxt >= q) & (active.sum() <= width))
+            return go
+
+        return cond
+
+    def narrow(carry, width):
+        """The active lanes gathered into the first ``width`` lanes (the rest are idle)."""
+        item, lane_in, active, k, s, trace, nxt, results, stats = carry
+        keep = jnp.argsort(~active, stable=True)[:width]
+        lane = lambda t: _take(t, keep)
+        return (
+            item[keep],
+            lane(lane_in),
+            active[keep],
+            k[keep],
+            lane(s),
+            lane(trace),
+            nxt,
+            results,
+            stats,
+        )
 
     k0 = jnp.zeros((lanes,), jnp.int32)
     nxt0 = jnp.asarray(min(lanes, q), jnp.int32)
     carry = (item0, inputs(item0), active0, k0, s0, trace0, nxt0, results0, stats0)
-    carry = jax.lax.while_loop(cond, body, carry)
+    for width in (*widths, None):
+        carry = jax.lax.while_loop(cond_until(width), body, carry)
+        if width is not None:
+            carry = narrow(carry, width)
     return carry[7], carry[8]

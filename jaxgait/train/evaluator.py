@@ -128,12 +128,13 @@ def _scorer(objective):
 
 
 @functools.lru_cache(maxsize=16)
-def _lane_scorer(model_name: str, cfg, objective, lanes: int, mesh: Mesh):
+def _lane_scorer(model_name: str, cfg, objective, lanes: int, mesh: Mesh, drain=()):
     """jit: one queue of rollouts per device -> per rollout (stage, value, valid), lane counts.
 
     ``run(params (G, Q, D), env (G, Q), max_stage (G, Q), d_lim, v0)``: each of the G groups
     (one per device of ``mesh``) runs its queue of Q rollouts over ``lanes`` lanes
-    (:func:`jaxgait.sim.lanes.lane_rollouts`) and scores each rollout when it ends.  The
+    (:func:`jaxgait.sim.lanes.lane_rollouts`, shrinking to the ``drain`` widths once its
+    queue is empty) and scores each rollout when it ends.  The
     groups are split over the devices with ``shard_map``, so each device runs the queue's own
     program: under ``vmap`` over the groups the queue's branches (refill, scoring the ended
     lanes) would become selects computed at every chunk end, about 1.7x slower on exp3.
@@ -146,7 +147,9 @@ def _lane_scorer(model_name: str, cfg, objective, lanes: int, mesh: Mesh):
     def one_device(params, env, max_stage, d_lim, v0):
         c = dataclasses.replace(cfg, d_lim=d_lim, v0=v0)
         first = lambda t: jax.tree.map(lambda x: x[0], t)
-        out, stats = lane_rollouts(model, c, params[0], first(env), finish, lanes, aux=max_stage[0])
+        out, stats = lane_rollouts(
+            model, c, params[0], first(env), finish, lanes, aux=max_stage[0], drain=drain
+        )
         return jax.tree.map(lambda x: x[None], (out, stats))
 
     pop, rep = PartitionSpec(POP_AXIS), PartitionSpec()
@@ -169,6 +172,12 @@ def _lane_scorer(model_name: str, cfg, objective, lanes: int, mesh: Mesh):
 #: exp3 generation (60 rollouts) took 26-32 s over 12-20 lanes against 36 s in one direct
 #: call of 60 (benchmarks/README.md, "Training throughput").
 CPU_AUTO_LANES = 16
+
+
+def drain_widths(lanes: int) -> tuple[int, ...]:
+    """The narrower lane counts a queue over ``lanes`` lanes drains to (see
+    :func:`jaxgait.sim.lanes.lane_rollouts`): a quarter of them, then one."""
+    return tuple(w for w in sorted({max(1, lanes // 4), 1}, reverse=True) if w < lanes)
 
 
 def choose_lanes(exp: Experiment, n_devices: int, n_runs: int = 1) -> int | None:
@@ -216,8 +225,10 @@ class PopulationEvaluator:
         #: lanes per device of the scheduled evaluation (None: direct calls of :attr:`rows`)
         self.lanes = choose_lanes(exp, self.n_devices, n_runs)
         if self.lanes is not None:
+            #: lane counts the queue shrinks to once it is empty (:func:`drain_widths`)
+            self.drain = drain_widths(self.lanes)
             self.lane_score = _lane_scorer(
-                exp.model, self.sim_cfg, self.objective, self.lanes, self.mesh
+                exp.model, self.sim_cfg, self.objective, self.lanes, self.mesh, self.drain
             )
         #: lane counts (:class:`~jaxgait.sim.lanes.LaneStats`, summed over devices) of the
         #: last evaluation: of the queue, or of the direct calls (whose lanes idle from the end
