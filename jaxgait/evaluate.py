@@ -49,9 +49,9 @@ from jaxgait.analysis.video import (
 )
 from jaxgait.core.jsonio import json_safe
 from jaxgait.evaluation import (  # noqa: F401 - the Python API, re-exported
+    REFERENCES,
     TAGA_RENAMED,
     TAGA_UNITS,
-    REFERENCES,
     EvalRun,
     EvaluateError,
     _check_inputs,

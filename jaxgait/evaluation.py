@@ -337,4 +337,6 @@ def evaluate(
     name = _choose_model(model, declared, label)
     if name == "taga":
         return _evaluate_taga(doc, label, file, env, duration, seed)
-    return run(preset, env=env, duration=duration, seed=seed, model=model, reference=reference).report
+    return run(
+        preset, env=env, duration=duration, seed=seed, model=model, reference=reference
+    ).report

@@ -84,7 +84,7 @@ def _parser() -> argparse.ArgumentParser:
         "--push-duration",
         type=float,
         default=None,
-        help="with --push-env push: the push's duration [s] (default 0.25)"
+        help="with --push-env push: the push's duration [s] (default 0.25)",
     )
     p.add_argument("--push-step", type=float, default=20.0, help="ladder spacing [N] (20)")
     p.add_argument("--push-max", type=float, default=400.0, help="largest push tried [N] (400)")

@@ -19,8 +19,15 @@ DT = 0.0005
 def empty(E=6):
     z = jnp.zeros(E, jnp.float32)
     return Events(
-        t=z, leg=jnp.zeros(E, jnp.int32), x_td=z, x_other=z, n=jnp.zeros((), jnp.int32),
-        peak_grf=z, peak_t=z, loading_rate=z, open=jnp.full((2,), -1, jnp.int32),
+        t=z,
+        leg=jnp.zeros(E, jnp.int32),
+        x_td=z,
+        x_other=z,
+        n=jnp.zeros((), jnp.int32),
+        peak_grf=z,
+        peak_t=z,
+        loading_rate=z,
+        open=jnp.full((2,), -1, jnp.int32),
     )
 
 
@@ -112,22 +119,32 @@ def test_human_likeness_of_winter_itself_and_of_a_shifted_copy():
     t = np.arange(1, 601) * dt
     phase = ((t - t0) % period) / period * 100.0
     fz = np.interp(phase, grf.gait_cycle_pct, grf.mean_bw, period=100.0) * 800.0
-    shifted = np.interp((phase + 20.0) % 100.0, grf.gait_cycle_pct, grf.mean_bw, period=100.0) * 800.0
+    shifted = (
+        np.interp((phase + 20.0) % 100.0, grf.gait_cycle_pct, grf.mean_bw, period=100.0) * 800.0
+    )
     right = t0 + np.arange(0, 6) * period
     E = 16
     ev = Events(
         t=jnp.asarray(np.pad(right, (0, E - right.size)), jnp.float32),
-        leg=jnp.zeros(E, jnp.int32), x_td=jnp.zeros(E, jnp.float32),
-        x_other=jnp.zeros(E, jnp.float32), n=jnp.asarray(right.size, jnp.int32),
+        leg=jnp.zeros(E, jnp.int32),
+        x_td=jnp.zeros(E, jnp.float32),
+        x_other=jnp.zeros(E, jnp.float32),
+        n=jnp.asarray(right.size, jnp.int32),
     )
     out = {}
     for name, f in (("winter", fz), ("shifted", shifted)):
         g = np.zeros((t.size, 2, 2), np.float32)
         g[:, 0, 1] = f
         tr = sim.trace.Trace(
-            t=jnp.asarray(t, jnp.float32), qpos=jnp.zeros((t.size, 9)), com=jnp.zeros((t.size, 2)),
-            com_vel=jnp.zeros((t.size, 2)), grf=jnp.asarray(g), stance=jnp.zeros((t.size, 2), bool),
-            act=jnp.zeros((t.size, 2, 7)), stim=jnp.zeros((t.size, 2, 7)), energy=jnp.zeros(t.size),
+            t=jnp.asarray(t, jnp.float32),
+            qpos=jnp.zeros((t.size, 9)),
+            com=jnp.zeros((t.size, 2)),
+            com_vel=jnp.zeros((t.size, 2)),
+            grf=jnp.asarray(g),
+            stance=jnp.zeros((t.size, 2), bool),
+            act=jnp.zeros((t.size, 2, 7)),
+            stim=jnp.zeros((t.size, 2, 7)),
+            energy=jnp.zeros(t.size),
             alive=jnp.ones(t.size, bool),
         )
         out[name] = human_likeness(tr, ev, 800.0, ref.mean_deg, True, ref)
@@ -135,8 +152,12 @@ def test_human_likeness_of_winter_itself_and_of_a_shifted_copy():
     assert float(out["shifted"]["grf_corr"]) < 0.8
     for j in ("hip", "knee", "ankle"):
         assert float(out["winter"][f"rom_{j}_diff_deg"]) == pytest.approx(0.0, abs=1e-4)
-    m = {"grf_peak_max_bw": jnp.asarray(1.8), "rom_knee_diff_deg": jnp.asarray(-5.0),
-         "rom_ankle_diff_deg": jnp.asarray(15.0), "grf_corr": out["shifted"]["grf_corr"]}
+    m = {
+        "grf_peak_max_bw": jnp.asarray(1.8),
+        "rom_knee_diff_deg": jnp.asarray(-5.0),
+        "rom_ankle_diff_deg": jnp.asarray(15.0),
+        "grf_corr": out["shifted"]["grf_corr"],
+    }
     assert float(criterion_value("grf_peak", m, {})) == pytest.approx(-0.5)
     assert float(criterion_value("rom", m, {})) == pytest.approx(-2.0)
     assert float(criterion_value("grf_corr", m, {})) == float(out["shifted"]["grf_corr"])

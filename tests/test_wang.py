@@ -483,10 +483,10 @@ def test_the_push_tolerant_walker_survives_wangs_push_where_nwalk_falls():
         pytest.skip("wang_push_walk_1p25 is not shipped")
     model = models.get_model("wang8")
     times = (4.0, 6.3)
-    cfgs = [envs.get_env_config("push", magnitude=100.0, duration=0.4, t_min=t, t_max=t) for t in times]
-    env = jax.tree.map(
-        lambda *x: jnp.stack(x), *[c.build(jax.random.PRNGKey(0)) for c in cfgs]
-    )
+    cfgs = [
+        envs.get_env_config("push", magnitude=100.0, duration=0.4, t_min=t, t_max=t) for t in times
+    ]
+    env = jax.tree.map(lambda *x: jnp.stack(x), *[c.build(jax.random.PRNGKey(0)) for c in cfgs])
     fell = {}
     for name in ("wang_push_walk_1p25", "wang_walk_1p25"):
         _, vec, doc = load_preset(name)

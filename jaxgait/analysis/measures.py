@@ -170,7 +170,9 @@ def human_likeness(
     """
     ref_grf = refdata.winter_walking_grf() if grf_reference is None else grf_reference
     bw = jnp.maximum(jnp.asarray(weight, trace.t.dtype), _TINY)
-    curves, valid = gait_cycle_curves(trace, events, trace.grf[:, 0, 1] / bw, ref_grf.gait_cycle_pct)
+    curves, valid = gait_cycle_curves(
+        trace, events, trace.grf[:, 0, 1] / bw, ref_grf.gait_cycle_pct
+    )
     r = pearson(curves[0], jnp.asarray(ref_grf.mean_bw, curves.dtype))
     ang = jnp.asarray(cycle_angles_deg)
     rom = jnp.max(ang, axis=0) - jnp.min(ang, axis=0)
@@ -383,7 +385,10 @@ def standard_scores(curves_deg, reference: refdata.Kinematics) -> jax.Array:
     """
     mean = jnp.asarray(reference.mean_deg, jnp.asarray(curves_deg).dtype)
     sd = jnp.stack(
-        [jnp.asarray(getattr(reference, f"{j}_sd_deg"), mean.dtype) for j in ("hip", "knee", "ankle")],
+        [
+            jnp.asarray(getattr(reference, f"{j}_sd_deg"), mean.dtype)
+            for j in ("hip", "knee", "ankle")
+        ],
         -1,
     )
     return jnp.mean(jnp.abs(jnp.asarray(curves_deg) - mean) / sd, axis=-2)
@@ -410,7 +415,8 @@ def joint_angle_correlations(
     Returns:
       ``corr_hip``, ``corr_knee``, ``corr_ankle`` (Pearson, in [-1, 1]), ``c_angles`` = their
       minimum (eq. 2.51), ``standard_score_hip``, ``_knee``, ``_ankle`` and their mean
-    ``standard_score`` (:func:`standard_scores`; :data:`SCORE_UNDEFINED` without a full cycle), ``cycle_valid`` (bool), ``cycle_angles_deg`` (N, 3) the resampled
+      ``standard_score`` (:func:`standard_scores`; :data:`SCORE_UNDEFINED` without a full
+      cycle), ``cycle_valid`` (bool), ``cycle_angles_deg`` (N, 3) the resampled
       model angles [deg], ``cycle_start_s``, ``cycle_end_s`` [s]. Without a full cycle the
       correlations and ``c_angles`` are :data:`CORR_UNDEFINED` (0).
     """

@@ -277,7 +277,7 @@ def _stance_peak_marks(ax, events, weight: float, n_cycles: int) -> None:
     right = np.flatnonzero(leg == 0)
     pts = [
         (100.0 * peak_t[i] / (t[j] - t[i]), peak[i] / weight)
-        for i, j in zip(right[:-1], right[1:])
+        for i, j in zip(right[:-1], right[1:], strict=True)
         if t[j] > t[i]
     ][-n_cycles:]
     if pts:
