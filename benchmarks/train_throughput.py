@@ -13,6 +13,8 @@ batch of walkers that never stop), and extrapolates the wall time of the full ru
     ./jg python benchmarks/train_throughput.py exp3 --iterations 4 --lanes 16   # queued
     ./jg python benchmarks/train_throughput.py exp3 --compare-queue 60 20 12   # direct vs queued
 
+    ./jg python benchmarks/train_throughput.py exp3 --compare-devices 1 2     # host devices
+
     ./jg python benchmarks/train_throughput.py --history runs/full/exp3/history.csv --lanes 16
 
 The extrapolation is an estimate (later iterations of a stage search walk further, so they
@@ -88,6 +90,55 @@ def compare_queue(name: str, particles: int | None, lane_counts, drains=None) ->
             f"stage differs from direct: {int((stage != direct).sum())} of {n}",
             flush=True,
         )
+    return 0
+
+
+def one_generation(name: str, lanes: int | None, repeats: int = 3) -> None:
+    """Time one generation of 5 %-perturbed ``fbl_walk`` candidates through the population
+    evaluator of this process (its devices; ``lanes`` per device, default automatic), the
+    first call (with compilation) and ``repeats - 1`` more."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from jaxgait import presets
+    from jaxgait.train import PopulationEvaluator, get_experiment
+
+    exp = get_experiment(name, **({} if lanes is None else {"lanes": lanes}))
+    ev = PopulationEvaluator(exp)
+    _, vec, _ = presets.load_preset("fbl_walk")
+    n = exp.particles * exp.worst_of_k
+    table = ev.model.table
+    pop = vec * (1 + 0.05 * np.random.default_rng(0).uniform(-1, 1, (n, vec.size)))
+    pop = jnp.asarray(np.clip(pop, table.lower, table.upper), jnp.float32)
+    keys = jax.random.split(jax.random.PRNGKey(1), n)
+    for r in range(repeats):
+        t = time.perf_counter()
+        stage, _, _ = ev.scores(pop, keys)
+        secs = time.perf_counter() - t
+        st = ev.last_stats
+        print(
+            f"{ev.n_devices} device(s) x {ev.lanes or ev.rows // ev.n_devices} lanes"
+            f"{' (direct)' if ev.lanes is None else f', drain {ev.drain}'}: "
+            f"{'compile + ' if r == 0 else ''}generation {secs:6.1f} s, utilisation "
+            f"{float(st.utilisation):.3f}, {int(st.busy) / secs:,.0f} busy lane-steps/s, "
+            f"stages {np.bincount(stage).tolist()}",
+            flush=True,
+        )
+
+
+def compare_devices(name: str, counts, lanes: int | None) -> int:
+    """:func:`one_generation` in one subprocess per host device count (XLA's flag must be
+    set before JAX starts), one after the other."""
+    import os
+    import subprocess
+    import sys
+
+    for n in counts:
+        env = dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={n}")
+        cmd = [sys.executable, __file__, name, "--one-generation"]
+        cmd += [] if lanes is None else ["--lanes", str(lanes)]
+        subprocess.run(cmd, env=env, check=True)
     return 0
 
 
@@ -168,7 +219,21 @@ def main(argv=None) -> int:
         help="with --compare-queue: drain widths to compare, comma-separated per case "
         "('none' for no drain), e.g. --drain none 4,1 8,4,2,1",
     )
+    ap.add_argument(
+        "--compare-devices",
+        type=int,
+        nargs="+",
+        metavar="N",
+        help="instead: one generation of perturbed fbl_walk candidates with the host as N "
+        "XLA devices (one subprocess each; --lanes per device, default automatic)",
+    )
+    ap.add_argument("--one-generation", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
+    if a.one_generation:
+        one_generation(a.experiment, a.lanes)
+        return 0
+    if a.compare_devices:
+        return compare_devices(a.experiment, a.compare_devices, a.lanes)
     if a.history:
         return from_history(a.history, a.lanes)
     if a.compare_queue:

@@ -32,6 +32,13 @@ COMMANDS = {
 
 
 def _train(argv):
+    from jaxgait.core import host_devices
+
+    try:  # before anything starts JAX's backend: one host device per core
+        host_devices.use_cpu_cores()
+    except ValueError as e:
+        print(f"jaxgait train: error: {e}", file=sys.stderr)
+        return 2
     from jaxgait.train.cli import main
 
     return main(argv)

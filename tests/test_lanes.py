@@ -158,7 +158,7 @@ def test_automatic_lane_choice():
     assert jax.default_backend() == "cpu"
     exp = get_experiment("exp3")  # 60 rollouts per iteration
     assert exp.lanes is None and choose_lanes(exp, 1) == CPU_AUTO_LANES
-    assert choose_lanes(exp, 4) is None  # 15 per device
+    assert choose_lanes(exp, 5) is None  # 12 per device
     assert choose_lanes(exp.replace(particles=8), 1) is None
     assert choose_lanes(exp.replace(particles=8), 1, n_runs=4) == CPU_AUTO_LANES
     assert choose_lanes(exp.replace(batch_size=30), 1) is None

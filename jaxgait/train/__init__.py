@@ -52,7 +52,20 @@ plots, the final re-evaluation), :mod:`~jaxgait.train.checkpoint` (orbax),
 :mod:`~jaxgait.train.loop` (:func:`train`) and :mod:`~jaxgait.train.cli`.
 """
 
-from jaxgait.train.cli import main, parse_set
+import sys as _sys
+
+from jaxgait.core import host_devices as _host_devices
+
+# ``python -m jaxgait.train`` imports this package before its ``__main__``, and the imports
+# below start JAX's backend: the training command's host devices are set here, first.
+if _host_devices.is_module_command(_sys.orig_argv, "jaxgait.train"):
+    try:
+        _host_devices.use_cpu_cores()
+    except ValueError as _e:
+        print(f"jaxgait.train: error: {_e}", file=_sys.stderr)
+        raise SystemExit(2) from None
+
+from jaxgait.train.cli import main, parse_set  # noqa: E402
 from jaxgait.train.evaluator import (
     PopulationEvaluator,
     padded_size,

@@ -1,4 +1,5 @@
-"""``python -m jaxgait.train``."""
+"""``python -m jaxgait.train`` (the host devices are set by the package, see its
+``__init__``)."""
 
 import sys
 

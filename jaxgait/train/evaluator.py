@@ -168,10 +168,12 @@ def _lane_scorer(model_name: str, cfg, objective, lanes: int, mesh: Mesh, drain=
     return jax.jit(scored)
 
 
-#: Lanes per CPU device of the automatic queue (``Experiment.lanes`` None): on 2 cores one
-#: exp3 generation (60 rollouts) took 26-32 s over 12-20 lanes against 36 s in one direct
-#: call of 60 (benchmarks/README.md, "Training throughput").
-CPU_AUTO_LANES = 16
+#: Lanes per CPU device of the automatic queue (``Experiment.lanes`` None).  On 2 cores as
+#: 2 host devices (:mod:`jaxgait.core.host_devices`) one exp3 generation (60 rollouts) took
+#: 17.3 s over 6 lanes per device, 17-19 s over 8 and 15.7-16.2 s over 12, against 31-35 s
+#: as 1 device over 16 lanes and 36 s in one direct call of 60 (benchmarks/README.md,
+#: "Training throughput").
+CPU_AUTO_LANES = 12
 
 
 def drain_widths(lanes: int) -> tuple[int, ...]:
