@@ -30,16 +30,29 @@ from pathlib import Path
 
 
 def step_throughput(lanes: int, steps: int = 200, repeats: int = 3) -> float:
-    """env-steps/s of the bare FBL step at batch ``lanes`` (best of ``repeats``), measured
-    with the setup and program of ``benchmarks/throughput.py``."""
+    """env-steps/s of the bare FBL step at ``lanes`` per device on every device of this
+    process (best of ``repeats``; ``shard_map`` over the devices), measured with the setup
+    and program of ``benchmarks/throughput.py``."""
     import jax
+    import numpy as np
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
     from throughput import _best_seconds, _full_program, _setup
 
-    model, cfg, params, env, s0 = _setup(lanes)
-    f = jax.jit(_full_program(model, cfg, steps))
+    devices = jax.devices()
+    n = lanes * len(devices)
+    model, cfg, params, env, s0 = _setup(n)
+    program = _full_program(model, cfg, steps)
     arg = (s0, params, env)
+    if len(devices) > 1:
+        mesh = Mesh(np.array(devices), ("pop",))
+        spec = PartitionSpec("pop")
+        program = jax.shard_map(
+            program, mesh=mesh, in_specs=(spec,), out_specs=spec, check_vma=False
+        )
+        arg = jax.device_put(arg, NamedSharding(mesh, spec))
+    f = jax.jit(program)
     jax.block_until_ready(f(arg))
-    return lanes * steps / _best_seconds(f, arg, repeats)
+    return n * steps / _best_seconds(f, arg, repeats)
 
 
 def compare_queue(name: str, particles: int | None, lane_counts, drains=None) -> int:
@@ -181,9 +194,12 @@ def from_history(path: Path, lanes: int | None) -> int:
     realised = sum(busy[1:] or busy) / sum(secs[1:] or secs)
     print(f"  realised {realised:,.0f} env-steps/s (iterations after the first)")
     if lanes:
+        import jax
+
         step = step_throughput(lanes)
         print(
-            f"  bare step at {lanes} lanes: {step:,.0f} env-steps/s; realised / bare "
+            f"  bare step at {jax.device_count()} device(s) x {lanes} lanes: {step:,.0f} "
+            f"env-steps/s; realised / bare "
             f"{realised / step:.2f} (target 0.80)"
         )
     return 0
@@ -229,6 +245,10 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--one-generation", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
+    if not a.one_generation:  # as the training command: one host device per core
+        from jaxgait.core import host_devices
+
+        host_devices.use_cpu_cores()
     if a.one_generation:
         one_generation(a.experiment, a.lanes)
         return 0
@@ -270,7 +290,7 @@ def main(argv=None) -> int:
     mean = sum(r["seconds"] for r in rows) / len(rows)
     realised = sum(r["env_steps_per_s"] * r["seconds"] for r in rows) / (mean * len(rows))
     step = step_throughput(lanes)
-    print(f"\nbare step at {lanes} lanes: {step:,.0f} env-steps/s")
+    print(f"\nbare step at {ev.n_devices} device(s) x {lanes} lanes: {step:,.0f} env-steps/s")
     print(f"realised / bare step: {realised / step:.2f}")
     print(
         f"mean iteration {mean:.1f} s -> {a.full_iterations} iterations ~ "
