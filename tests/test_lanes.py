@@ -150,15 +150,19 @@ def test_queued_training_evaluation_equals_direct_calls(fbl_model):
 
 
 def test_automatic_lane_choice():
-    """None: a queue over CPU_AUTO_LANES per CPU device once a device holds more rollouts
-    than that (and no batch_size bounds the calls); 0: direct calls; N: N lanes."""
+    """None: a queue over CPU_AUTO_LANES per CPU device once a device holds more than
+    CPU_AUTO_QUEUE_ABOVE rollouts (and no batch_size bounds the calls); 0: direct calls; N: N
+    lanes."""
     from jaxgait.train import get_experiment
-    from jaxgait.train.evaluator import CPU_AUTO_LANES, choose_lanes
+    from jaxgait.train.evaluator import CPU_AUTO_LANES, CPU_AUTO_QUEUE_ABOVE, choose_lanes
 
+    assert CPU_AUTO_LANES <= CPU_AUTO_QUEUE_ABOVE
+    assert choose_lanes(get_experiment("quickstart"), 1) is None  # 16: one direct call
     assert jax.default_backend() == "cpu"
     exp = get_experiment("exp3")  # 60 rollouts per iteration
     assert exp.lanes is None and choose_lanes(exp, 1) == CPU_AUTO_LANES
-    assert choose_lanes(exp, 5) is None  # 12 per device
+    assert choose_lanes(exp, 4) is None  # 15 per device
+    assert choose_lanes(exp, 3) == CPU_AUTO_LANES  # 20 per device
     assert choose_lanes(exp.replace(particles=8), 1) is None
     assert choose_lanes(exp.replace(particles=8), 1, n_runs=4) == CPU_AUTO_LANES
     assert choose_lanes(exp.replace(batch_size=30), 1) is None

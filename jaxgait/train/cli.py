@@ -88,7 +88,7 @@ def _parser() -> argparse.ArgumentParser:
         type=int,
         default=S,
         help="queue the rollouts over this many lanes per device (0: direct calls; default: "
-        "automatic, a queue over 12 lanes per CPU device for populations larger than that)",
+        "automatic, a queue over 12 lanes per CPU device holding more than 16 rollouts)",
     )
     p.add_argument(
         "--seeds",

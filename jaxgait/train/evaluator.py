@@ -175,6 +175,11 @@ def _lane_scorer(model_name: str, cfg, objective, lanes: int, mesh: Mesh, drain=
 #: "Training throughput").
 CPU_AUTO_LANES = 12
 
+#: A CPU device queues its rollouts (over :data:`CPU_AUTO_LANES` lanes) only when it holds
+#: more than this many; up to it, one direct call (e.g. the quickstart's 16 candidates, whose
+#: iterations, final evaluation and perturbation check then share one compiled rollout).
+CPU_AUTO_QUEUE_ABOVE = 16
+
 
 def drain_widths(lanes: int) -> tuple[int, ...]:
     """The narrower lane counts a queue over ``lanes`` lanes drains to (see
@@ -190,7 +195,7 @@ def choose_lanes(exp: Experiment, n_devices: int, n_runs: int = 1) -> int | None
     per_device = -(-n_runs * exp.particles * exp.worst_of_k // n_devices)
     if exp.batch_size is not None or jax.default_backend() != "cpu":
         return None
-    return CPU_AUTO_LANES if per_device > CPU_AUTO_LANES else None
+    return CPU_AUTO_LANES if per_device > CPU_AUTO_QUEUE_ABOVE else None
 
 
 @functools.lru_cache(maxsize=16)

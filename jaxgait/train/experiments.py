@@ -176,8 +176,8 @@ class Experiment:
         per device, a lane taking the next rollout as soon as its own ended
         (:mod:`jaxgait.sim.lanes`); 0: direct calls of ``batch_size`` rollouts side by side;
         None (default): automatic, a queue over
-        :data:`~jaxgait.train.evaluator.CPU_AUTO_LANES` lanes per CPU device when more
-        rollouts than that fall to a device and no ``batch_size`` is set, otherwise direct
+        :data:`~jaxgait.train.evaluator.CPU_AUTO_LANES` lanes per CPU device when more than
+        ``CPU_AUTO_QUEUE_ABOVE`` rollouts fall to a device and no ``batch_size`` is set, else direct
         calls (accelerators run wide batches at full speed).
       stop_speed_tol: early stop [m/s]: the run ends (complete) after the first iteration
         whose best rollout walked the whole ``duration`` without falling at a mean speed
