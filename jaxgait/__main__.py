@@ -2,6 +2,6 @@
 
 import sys
 
-from jaxgait.cli import main
+from jaxgait.cli import console_main
 
-sys.exit(main())
+sys.exit(console_main())

@@ -32,13 +32,6 @@ COMMANDS = {
 
 
 def _train(argv):
-    from jaxgait.core import host_devices
-
-    try:  # before anything starts JAX's backend: one host device per core
-        host_devices.use_cpu_cores()
-    except ValueError as e:
-        print(f"jaxgait train: error: {e}", file=sys.stderr)
-        return 2
     from jaxgait.train.cli import main
 
     return main(argv)
@@ -142,5 +135,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     return int(_RUN[cmd](rest) or 0)
 
 
+def console_main(argv: Sequence[str] | None = None) -> int:
+    """The ``jaxgait`` command (and ``python -m jaxgait``): :func:`main`, with the training
+    command's host devices set first (one per CPU core, :mod:`jaxgait.core.host_devices`).
+    Called in a Python session, :func:`main` leaves JAX's devices as they are."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if args[:1] == ["train"]:
+        from jaxgait.core import host_devices
+
+        try:  # before anything starts JAX's backend
+            host_devices.use_cpu_cores()
+        except ValueError as e:
+            print(f"jaxgait train: error: {e}", file=sys.stderr)
+            return 2
+    return main(args)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(console_main())

@@ -60,3 +60,15 @@ def test_a_fresh_process_gets_the_devices():
         )
         == 1
     )
+
+
+def test_only_the_command_sets_devices(monkeypatch):
+    """``jaxgait train`` from the shell sets the devices; ``cli.main`` in a Python session
+    (a notebook, a test) leaves them alone."""
+    from jaxgait import cli
+
+    calls = []
+    monkeypatch.setattr(hd, "use_cpu_cores", lambda: calls.append(1))
+    monkeypatch.setattr(cli, "main", lambda argv: 0)
+    assert cli.console_main(["train", "--list"]) == 0 and calls == [1]
+    assert cli.console_main(["list"]) == 0 and calls == [1]
