@@ -55,27 +55,33 @@ def step_throughput(lanes: int, steps: int = 200, repeats: int = 3) -> float:
     return n * steps / _best_seconds(f, arg, repeats)
 
 
-def compare_queue(name: str, particles: int | None, lane_counts, drains=None) -> int:
-    """Direct calls against the queue over each lane count on one generation: wall time,
-    lane counts, and the candidates whose stage differs from the direct call's.  ``drains``:
-    drain widths to compare for each lane count (e.g. ``[(), (4, 1)]``; default the
-    evaluator's own)."""
+def _perturbed_generation(exp, table):
+    """(population, keys) of one generation of ``exp``: ``fbl_walk`` perturbed by up to 5 %
+    per parameter (seed 0), clipped to ``table``'s ranges, and fresh environment keys."""
     import jax
     import jax.numpy as jnp
     import numpy as np
 
     from jaxgait import presets
+
+    _, vec, _ = presets.load_preset("fbl_walk")
+    n = exp.particles * exp.worst_of_k
+    pop = vec * (1 + 0.05 * np.random.default_rng(0).uniform(-1, 1, (n, vec.size)))
+    pop = jnp.asarray(np.clip(pop, table.lower, table.upper), jnp.float32)
+    return pop, jax.random.split(jax.random.PRNGKey(1), n)
+
+
+def compare_queue(name: str, particles: int | None, lane_counts, drains=None) -> int:
+    """Direct calls against the queue over each lane count on one generation: wall time,
+    lane counts, and the candidates whose stage differs from the direct call's.  ``drains``:
+    drain widths to compare for each lane count (e.g. ``[(), (4, 1)]``; default the
+    evaluator's own)."""
     from jaxgait.train import PopulationEvaluator, get_experiment
     from jaxgait.train import evaluator as evaluator_mod
 
     exp = get_experiment(name, **({} if particles is None else {"particles": particles}))
-    _, vec, _ = presets.load_preset("fbl_walk")
     n = exp.particles * exp.worst_of_k
-    rng = np.random.default_rng(0)
-    table = PopulationEvaluator(exp).model.table
-    pop = vec * (1 + 0.05 * rng.uniform(-1, 1, (n, vec.size)))
-    pop = jnp.asarray(np.clip(pop, table.lower, table.upper), jnp.float32)
-    keys = jax.random.split(jax.random.PRNGKey(1), n)
+    pop, keys = _perturbed_generation(exp, PopulationEvaluator(exp).model.table)
     direct = None
     own = evaluator_mod.drain_widths
     cases = [("direct", exp.replace(lanes=0), None)]
@@ -110,21 +116,13 @@ def one_generation(name: str, lanes: int | None, repeats: int = 3) -> None:
     """Time one generation of 5 %-perturbed ``fbl_walk`` candidates through the population
     evaluator of this process (its devices; ``lanes`` per device, default automatic), the
     first call (with compilation) and ``repeats - 1`` more."""
-    import jax
-    import jax.numpy as jnp
     import numpy as np
 
-    from jaxgait import presets
     from jaxgait.train import PopulationEvaluator, get_experiment
 
     exp = get_experiment(name, **({} if lanes is None else {"lanes": lanes}))
     ev = PopulationEvaluator(exp)
-    _, vec, _ = presets.load_preset("fbl_walk")
-    n = exp.particles * exp.worst_of_k
-    table = ev.model.table
-    pop = vec * (1 + 0.05 * np.random.default_rng(0).uniform(-1, 1, (n, vec.size)))
-    pop = jnp.asarray(np.clip(pop, table.lower, table.upper), jnp.float32)
-    keys = jax.random.split(jax.random.PRNGKey(1), n)
+    pop, keys = _perturbed_generation(exp, ev.model.table)
     for r in range(repeats):
         t = time.perf_counter()
         stage, _, _ = ev.scores(pop, keys)
