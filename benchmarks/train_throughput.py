@@ -12,6 +12,7 @@ batch of walkers that never stop), and extrapolates the wall time of the full ru
     ./jg python benchmarks/train_throughput.py exp3 --iterations 4
     ./jg python benchmarks/train_throughput.py exp3 --iterations 4 --lanes 16   # queued
     ./jg python benchmarks/train_throughput.py exp3 --compare-queue 60 20 12   # direct vs queued
+    ./jg python benchmarks/train_throughput.py exp3 --compare-queue 12 --chunk-s 1 0.25
 
     ./jg python benchmarks/train_throughput.py exp3 --compare-devices 1 2     # host devices
 
@@ -71,11 +72,12 @@ def _perturbed_generation(exp, table):
     return pop, jax.random.split(jax.random.PRNGKey(1), n)
 
 
-def compare_queue(name: str, particles: int | None, lane_counts, drains=None) -> int:
+def compare_queue(name: str, particles: int | None, lane_counts, drains=None, chunks=None) -> int:
     """Direct calls against the queue over each lane count on one generation: wall time,
     lane counts, and the candidates whose stage differs from the direct call's.  ``drains``:
     drain widths to compare for each lane count (e.g. ``[(), (4, 1)]``; default the
-    evaluator's own)."""
+    evaluator's own); ``chunks``: the queue's chunk lengths [s] to compare (default
+    :data:`~jaxgait.train.evaluator.QUEUE_CHUNK_S`)."""
     from jaxgait.train import PopulationEvaluator, get_experiment
     from jaxgait.train import evaluator as evaluator_mod
 
@@ -83,19 +85,22 @@ def compare_queue(name: str, particles: int | None, lane_counts, drains=None) ->
     n = exp.particles * exp.worst_of_k
     pop, keys = _perturbed_generation(exp, PopulationEvaluator(exp).model.table)
     direct = None
-    own = evaluator_mod.drain_widths
-    cases = [("direct", exp.replace(lanes=0), None)]
+    own, own_chunk = evaluator_mod.drain_widths, evaluator_mod.QUEUE_CHUNK_S
+    cases = [("direct", exp.replace(lanes=0), None, own_chunk)]
     for k in lane_counts:
         for d in drains or [None]:
-            widths = own(k) if d is None else tuple(w for w in d if w < k)
-            label = f"queued over {k} lanes" + (f", drain {widths}" if widths else "")
-            cases.append((label, exp.replace(lanes=k), widths))
-    for label, e, widths in cases:
+            for c in chunks or [own_chunk]:
+                widths = own(k) if d is None else tuple(w for w in d if w < k)
+                label = f"queued over {k} lanes" + (f", drain {widths}" if widths else "")
+                label += f", chunks {c:g} s" if chunks else ""
+                cases.append((label, exp.replace(lanes=k), widths, c))
+    for label, e, widths, c in cases:
         evaluator_mod.drain_widths = own if widths is None else (lambda lanes, w=widths: w)
+        evaluator_mod.QUEUE_CHUNK_S = c
         try:
             ev = PopulationEvaluator(e)
         finally:
-            evaluator_mod.drain_widths = own
+            evaluator_mod.drain_widths, evaluator_mod.QUEUE_CHUNK_S = own, own_chunk
         for _ in range(2):  # the first call compiles
             t = time.perf_counter()
             stage, value, _ = ev.scores(pop, keys)
@@ -103,7 +108,7 @@ def compare_queue(name: str, particles: int | None, lane_counts, drains=None) ->
         st = ev.last_stats
         direct = stage if direct is None else direct
         print(
-            f"{label:40s} {secs:7.1f} s  utilisation {float(st.utilisation):.3f}  "
+            f"{label:52s} {secs:7.1f} s  utilisation {float(st.utilisation):.3f}  "
             f"busy {int(st.busy):,}  total {int(st.total):,} lane-steps  "
             f"{int(st.busy) / secs:,.0f} busy lane-steps/s  "
             f"stage differs from direct: {int((stage != direct).sum())} of {n}",
@@ -234,6 +239,14 @@ def main(argv=None) -> int:
         "('none' for no drain), e.g. --drain none 4,1 8,4,2,1",
     )
     ap.add_argument(
+        "--chunk-s",
+        type=float,
+        nargs="+",
+        metavar="S",
+        help="with --compare-queue: the queue's chunk lengths [s] to compare, e.g. "
+        "--chunk-s 1 0.5 0.25",
+    )
+    ap.add_argument(
         "--compare-devices",
         type=int,
         nargs="+",
@@ -258,7 +271,7 @@ def main(argv=None) -> int:
         drains = None
         if a.drain:
             drains = [() if d == "none" else tuple(int(w) for w in d.split(",")) for d in a.drain]
-        return compare_queue(a.experiment, a.particles, a.compare_queue, drains)
+        return compare_queue(a.experiment, a.particles, a.compare_queue, drains, a.chunk_s)
 
     from jaxgait.train import get_experiment, train
     from jaxgait.train.evaluator import PopulationEvaluator

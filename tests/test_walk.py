@@ -33,6 +33,18 @@ def test_fbl_walk_walks_20s_on_flat_ground(fbl_walk):
     assert m["n_steps"] >= 20
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["exp3_walk", "exp7a_walk"])
+def test_full_size_reproduction_presets_walk_20s_on_flat_ground(name):
+    """The best gaits of the full-size exp3 and exp7a runs, shipped as presets, walk on flat
+    ground near the thesis's 1.3 m/s (experiments/full/README.md: 60 s each)."""
+    model, vec, doc = load_preset(name)
+    assert model == "fbl" and doc["experiment"] == name.removesuffix("_walk")
+    m = _walk(vec, 20.0)
+    assert not m["fell"] and m["duration_s"] == pytest.approx(20.0, abs=0.01)
+    assert 1.2 <= m["mean_speed_mps"] <= 1.45 and m["n_steps"] >= 20
+
+
 def test_fbl_humanlike_walks_20s_without_the_forefoot_slap():
     """The human-like preset walks 20 s at 1.2-1.4 m/s, its stance GRF peaks under 2.5 BW
     (fbl_walk's forefoot slaps to 3.7-4.9 BW) and its vertical GRF correlates with Winter's."""

@@ -181,6 +181,14 @@ CPU_AUTO_LANES = 12
 CPU_AUTO_QUEUE_ABOVE = 16
 
 
+#: Simulated time per chunk of the queued evaluation [s]: a lane whose rollout ends (a fall)
+#: idles to the end of its chunk before it takes the next one, so shorter chunks waste less;
+#: each chunk end costs a little (the refill's branch, the trace's row slices).  The direct
+#: calls keep :class:`~jaxgait.sim.model.SimConfig`'s 1 s.  Measured in
+#: ``benchmarks/train_throughput.py --compare-queue 12 --chunk-s 1 0.5 0.25``.
+QUEUE_CHUNK_S = 0.25
+
+
 def drain_widths(lanes: int) -> tuple[int, ...]:
     """The narrower lane counts a queue over ``lanes`` lanes drains to (see
     :func:`jaxgait.sim.lanes.lane_rollouts`): a quarter of them, then one."""
@@ -234,8 +242,10 @@ class PopulationEvaluator:
         if self.lanes is not None:
             #: lane counts the queue shrinks to once it is empty (:func:`drain_widths`)
             self.drain = drain_widths(self.lanes)
+            #: the queue's settings: :attr:`sim_cfg` in chunks of :data:`QUEUE_CHUNK_S`
+            self.lane_cfg = dataclasses.replace(self.sim_cfg, chunk_s=QUEUE_CHUNK_S)
             self.lane_score = _lane_scorer(
-                exp.model, self.sim_cfg, self.objective, self.lanes, self.mesh, self.drain
+                exp.model, self.lane_cfg, self.objective, self.lanes, self.mesh, self.drain
             )
         #: lane counts (:class:`~jaxgait.sim.lanes.LaneStats`, summed over devices) of the
         #: last evaluation: of the queue, or of the direct calls (whose lanes idle from the end
