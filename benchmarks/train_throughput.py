@@ -89,11 +89,11 @@ def compare_queue(name: str, particles: int | None, lane_counts, drains=None, ch
     cases = [("direct", exp.replace(lanes=0), None, own_chunk)]
     for k in lane_counts:
         for d in drains or [None]:
+            widths = own(k) if d is None else tuple(w for w in d if w < k)
+            label = f"queued over {k} lanes" + (f", drain {widths}" if widths else "")
             for c in chunks or [own_chunk]:
-                widths = own(k) if d is None else tuple(w for w in d if w < k)
-                label = f"queued over {k} lanes" + (f", drain {widths}" if widths else "")
-                label += f", chunks {c:g} s" if chunks else ""
-                cases.append((label, exp.replace(lanes=k), widths, c))
+                text = label + (f", chunks {c:g} s" if chunks else "")
+                cases.append((text, exp.replace(lanes=k), widths, c))
     for label, e, widths, c in cases:
         evaluator_mod.drain_widths = own if widths is None else (lambda lanes, w=widths: w)
         evaluator_mod.QUEUE_CHUNK_S = c

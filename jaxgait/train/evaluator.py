@@ -185,7 +185,7 @@ CPU_AUTO_QUEUE_ABOVE = 16
 #: idles to the end of its chunk before it takes the next one, so shorter chunks waste less;
 #: each chunk end costs a little (the refill's branch, the trace's row slices).  The direct
 #: calls keep :class:`~jaxgait.sim.model.SimConfig`'s 1 s.  Measured in
-#: ``benchmarks/train_throughput.py --compare-queue 12 --chunk-s 1 0.5 0.25``.
+#: ``benchmarks/train_throughput.py --compare-queue 12 --chunk-s 1 0.25`` (benchmarks/README.md).
 QUEUE_CHUNK_S = 0.25
 
 
