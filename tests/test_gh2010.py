@@ -137,3 +137,59 @@ def test_shipped_gh2010_preset_is_geyers_gains_on_the_faithful_model():
 
     _, _, summary, _ = f(jnp.asarray(vec), envs.make_env("flat", jax.random.PRNGKey(0)))
     assert float(summary.duration) == pytest.approx(0.3, abs=1e-3)
+
+
+# ----------------------------------------------------------------------- start options
+def _start(**kw):
+    from jaxgait.world import envs
+
+    m = models.get_model("fbl")
+    vec = jnp.asarray(FBL.init, jnp.float32)
+    cfg = sim.SimConfig(duration=0.1, **kw)
+    return m, vec, sim.initial_state(m, vec, envs.make_env("flat", jax.random.PRNGKey(0)), cfg)
+
+
+def test_rest_start_has_every_muscle_at_the_minimum_activation():
+    _, _, s = _start()
+    np.testing.assert_array_equal(np.asarray(s.muscle.act), np.float32(0.01))
+
+
+def test_reflex_start_is_a_fixed_point_of_the_controllers_stimulation():
+    """With ``start_activation="reflex"`` the activation is the controller's stimulation of
+    the start sensors, clipped to [0.01, 1], and the muscles rest at it: one more pass of
+    stimulation -> resting force -> sensors changes no activation by more than 1e-4."""
+    from jaxgait.body.joints import q_to_phi
+    from jaxgait.muscles import mtu
+
+    m, vec, s = _start(start_activation="reflex")
+    act = np.asarray(s.muscle.act)
+    # the stance leg's (right) force-fed extensors are above the rest level, and the swing
+    # leg's VAS is off in swing (0 stimulation -> the minimum)
+    assert act[0, VAS] > 0.05 and act[0, SOL] > 0.02
+    assert act[1, VAS] == pytest.approx(0.01)
+    # the CE rests at that activation
+    l_mtu = mtu.mtu_length(m.muscles, q_to_phi(s.qpos[jnp.asarray(m._ids[3])]))
+    np.testing.assert_allclose(
+        np.asarray(s.muscle.l_ce),
+        np.asarray(mtu.init_lce(m.muscles, l_mtu, s.muscle.act)),
+        rtol=1e-6,
+    )
+    # a fixed point: the stimulation of the rested muscles' sensors is the activation again
+    p = m.table.unpack(vec)
+    buf = np.asarray(s.ctrl.buf)
+    stim = fbl_stimulation(p, jnp.asarray(buf[-1]))
+    np.testing.assert_allclose(np.clip(np.asarray(stim), 0.01, 1.0), act, atol=1e-4)
+
+
+def test_zero_delay_start_fills_the_delay_lines_with_zeros():
+    _, _, rest = _start()
+    _, _, zero = _start(start_delays="zero")
+    assert np.all(np.asarray(zero.ctrl.buf) == 0.0)
+    assert np.any(np.asarray(rest.ctrl.buf) != 0.0)
+    np.testing.assert_array_equal(np.asarray(zero.qpos), np.asarray(rest.qpos))
+
+
+@pytest.mark.parametrize("field", ["start_activation", "start_delays"])
+def test_unknown_start_option_is_refused_by_name(field):
+    with pytest.raises(ValueError, match=field):
+        sim.SimConfig(**{field: "standing"})

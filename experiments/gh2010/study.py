@@ -57,14 +57,19 @@ CONFIGS = (
      GH2010_CONTROLLER, SHEET, 1.0, None, S_GAINS),
     ("gh2010 swing hip 150", "Thatte's start: swing hip 150 deg, not 140 (section 4)",
      GH2010_CONTROLLER, SHEET, 1.0, None, {}, "thatte"),
+    ("gh2010 reflex start", "muscles start at the controller's stimulation (a fixed point), not "
+     "at 0.01", GH2010_CONTROLLER, SHEET, 1.0, None, {}, "geyer", {"start_activation": "reflex"}),
+    ("gh2010 zero delays", "delay lines start at 0 (Simulink transport delays), not at the "
+     "start's sensors", GH2010_CONTROLLER, SHEET, 1.0, None, {}, "geyer",
+     {"start_delays": "zero"}),
 )  # fmt: skip
 
 
-def run(controller, gait, k_bw, timestep, duration, gains=None, pose="geyer", v0=1.3):
+def run(controller, gait, k_bw, timestep, duration, gains=None, pose="geyer", start=None, v0=1.3):
     model = sim.planar_model(controller, timestep, gait=gait)
     params = dict(GH2010_PARAMS, k_bw=k_bw, **(gains or {}))
     vec = jnp.asarray([params[n] for n in FBL.names], jnp.float32)
-    cfg = sim.SimConfig(duration=duration, chunk_s=1.0, v0=v0, pose=pose)
+    cfg = sim.SimConfig(duration=duration, chunk_s=1.0, v0=v0, pose=pose, **(start or {}))
     env = envs.make_env("flat", jax.random.PRNGKey(0))
     tr, ev, sm, _ = sim.make_rollout(model, cfg, batched=False)(vec, env)
     m = compute_measures(tr, ev, sm, skip=0)

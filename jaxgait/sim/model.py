@@ -36,6 +36,11 @@ CONTACT_SITES = ("heel_r", "ball_r", "heel_l", "ball_l")
 LEG_JOINTS = (("hip_r", "knee_r", "ankle_r"), ("hip_l", "knee_l", "ankle_l"))
 
 
+#: Choices of :attr:`SimConfig.start_activation` and :attr:`SimConfig.start_delays`.
+START_ACTIVATIONS = ("rest", "reflex")
+START_DELAYS = ("sensors", "zero")
+
+
 @dataclass(frozen=True)
 class SimConfig:
     """Static rollout settings (everything that is not an optimised parameter).
@@ -55,6 +60,14 @@ class SimConfig:
       max_events: capacity of the touchdown event buffer.
       fall_hip_height: fall when the hip is lower than this above the ground [m].
       fall_pitch: fall when |trunk pitch| exceeds this [rad].
+      start_activation: the muscles' activation at t = 0: ``"rest"`` (every muscle at the
+        minimum 0.01, the thesis's A = 0 start) or ``"reflex"`` (the controller's own
+        stimulation of the start sensors, iterated with the muscles' resting force to a fixed
+        point, as SCONE's ``initialize_activations_from_controller``).
+      start_delays: what the controller's delay lines hold at t = 0: ``"sensors"`` (the start
+        sensors, as if the body had stood still in its start pose) or ``"zero"`` (the
+        controller initialised on all-zero sensors, as Simulink transport delays whose
+        initial output is 0).
     """
 
     duration: float = 20.0
@@ -69,8 +82,18 @@ class SimConfig:
     max_events: int = 512
     fall_hip_height: float = 0.6
     fall_pitch: float = 1.0
+    start_activation: str = "rest"
+    start_delays: str = "sensors"
 
     def __post_init__(self):
+        for name, ok in (
+            ("start_activation", START_ACTIVATIONS),
+            ("start_delays", START_DELAYS),
+        ):
+            if getattr(self, name) not in ok:
+                raise ValueError(
+                    f"SimConfig.{name} must be one of {ok}, got {getattr(self, name)!r}"
+                )
         for name, lo in (("muscle_substeps", 1), ("ce_solve_iters", 0), ("max_events", 1)):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < lo:

@@ -20,6 +20,7 @@ Rollouts are in :mod:`jaxgait.sim.rollout`.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -117,6 +118,12 @@ def leg_load(model: Model, qpos, gait, grf):
 
 
 # ------------------------------------------------------------------------- init
+#: Fixed-point iterations of the ``start_activation="reflex"`` start (stimulation <-> resting
+#: muscle force).  Positive force feedback makes the loop gain G f_l(l) close to 1 (0.96 for
+#: SOL with Geyer's gains), so the iteration converges slowly: 500 passes leave < 1e-6.
+START_REFLEX_ITERS = 500
+
+
 def initial_state(
     model: Model,
     params,
@@ -160,30 +167,49 @@ def initial_state(
     legq_j = jnp.asarray(legq)
     phi = q_to_phi(qpos[legq_j])
     l_mtu = mus.mtu_length(table, phi)
+    gait = init_gait([1.0, 0.0], [True, False], qpos[2], dtype)
+
+    def start_sensors(act, l_ce):
+        f_mtu = mus.mtu_force(table, act, l_ce, l_mtu)
+        return f_mtu, sensors_of(
+            model,
+            jnp.zeros((), dtype),
+            f_mtu,
+            l_ce,
+            phi,
+            jnp.zeros_like(phi),
+            qpos,
+            qvel,
+            gait,
+            jnp.zeros(2, bool),
+            jnp.zeros(2, bool),
+            pts,
+            jac[7] @ qvel,
+            jac[4:6] @ qvel,
+            # the stance leg carries the body's weight (the filtered load's start, 1 and 0 BW)
+            jnp.asarray([[0.0, model.mass * 9.81], [0.0, 0.0]], dtype),
+        )
+
     l_ce = mus.init_lce(table, l_mtu)
     act = jnp.full_like(l_ce, 0.01)
+    f_mtu, sensors0 = start_sensors(act, l_ce)
+    if cfg.start_activation == "reflex":  # the controller's stimulation, to a fixed point
+        p = model.table.unpack(jnp.asarray(params))
+        cmd = cmd_mod.as_dict(ctrl.commands, scheduled_command(model, commands, 0.0, dtype))
+
+        def settle(_, al):  # stimulation of the sensors of muscles resting at activation a
+            _, sens = start_sensors(*al)
+            stim, _ = ctrl.step(ctrl, p, sens, ctrl.init(ctrl, sens, model.dt), cmd, model.dt)
+            a = jnp.clip(stim.astype(dtype), mus.ACT_MIN, 1.0)
+            return a, mus.init_lce(table, l_mtu, a)
+
+        act, l_ce = jax.lax.fori_loop(0, START_REFLEX_ITERS, settle, (act, l_ce))
+        f_mtu, sensors0 = start_sensors(act, l_ce)
     mstate = mus.MuscleState(act=act, l_ce=l_ce)
-    f_mtu = mus.mtu_force(table, act, l_ce, l_mtu)
-    gait = init_gait([1.0, 0.0], [True, False], qpos[2], dtype)
-    sensors0 = sensors_of(
-        model,
-        jnp.zeros((), dtype),
-        f_mtu,
-        l_ce,
-        phi,
-        jnp.zeros_like(phi),
-        qpos,
-        qvel,
-        gait,
-        jnp.zeros(2, bool),
-        jnp.zeros(2, bool),
-        pts,
-        jac[7] @ qvel,
-        jac[4:6] @ qvel,
-        # the stance leg carries the body's weight (the filtered load's start, 1 and 0 BW)
-        jnp.asarray([[0.0, model.mass * 9.81], [0.0, 0.0]], dtype),
-    )
-    ctrl_state = ctrl.init(ctrl, sensors0, model.dt)
+    delay_start = sensors0
+    if cfg.start_delays == "zero":  # the delay lines' initial output 0 (Simulink)
+        delay_start = jax.tree.map(jnp.zeros_like, sensors0)
+    ctrl_state = ctrl.init(ctrl, delay_start, model.dt)
     law_state = None
     if command_law is not None:
         cmd0 = scheduled_command(model, commands, sensors0.t, dtype)
