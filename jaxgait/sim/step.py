@@ -169,12 +169,11 @@ def initial_state(
     l_mtu = mus.mtu_length(table, phi)
     gait = init_gait([1.0, 0.0], [True, False], qpos[2], dtype)
 
-    def start_sensors(act, l_ce):
-        f_mtu = mus.mtu_force(table, act, l_ce, l_mtu)
-        return f_mtu, sensors_of(
+    def start_sensors(act, l_ce):  # the sensors of muscles resting at (act, l_ce)
+        return sensors_of(
             model,
             jnp.zeros((), dtype),
-            f_mtu,
+            mus.mtu_force(table, act, l_ce, l_mtu),
             l_ce,
             phi,
             jnp.zeros_like(phi),
@@ -192,19 +191,19 @@ def initial_state(
 
     l_ce = mus.init_lce(table, l_mtu)
     act = jnp.full_like(l_ce, 0.01)
-    f_mtu, sensors0 = start_sensors(act, l_ce)
+    sensors0 = start_sensors(act, l_ce)
     if cfg.start_activation == "reflex":  # the controller's stimulation, to a fixed point
         p = model.table.unpack(jnp.asarray(params))
         cmd = cmd_mod.as_dict(ctrl.commands, scheduled_command(model, commands, 0.0, dtype))
 
-        def settle(_, al):  # stimulation of the sensors of muscles resting at activation a
-            _, sens = start_sensors(*al)
+        def settle(_, al):  # the stimulation of the muscles resting at al = (act, l_ce)
+            sens = start_sensors(*al)
             stim, _ = ctrl.step(ctrl, p, sens, ctrl.init(ctrl, sens, model.dt), cmd, model.dt)
             a = jnp.clip(stim.astype(dtype), mus.ACT_MIN, 1.0)
             return a, mus.init_lce(table, l_mtu, a)
 
         act, l_ce = jax.lax.fori_loop(0, START_REFLEX_ITERS, settle, (act, l_ce))
-        f_mtu, sensors0 = start_sensors(act, l_ce)
+        sensors0 = start_sensors(act, l_ce)
     mstate = mus.MuscleState(act=act, l_ce=l_ce)
     delay_start = sensors0
     if cfg.start_delays == "zero":  # the delay lines' initial output 0 (Simulink)
