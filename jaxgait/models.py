@@ -27,6 +27,7 @@ from typing import Any
 
 from jaxgait.control.commands import Command
 from jaxgait.control.fbl import FBL_CONTROLLER
+from jaxgait.control.fblankle import FBL_ANKLE_CONTROLLER
 from jaxgait.control.fblplus import FBLPLUS_CONTROLLER
 from jaxgait.control.gait import GaitConfig
 from jaxgait.control.gh2010 import GH2010_CONTROLLER
@@ -126,6 +127,7 @@ register(
     )
 )
 register(planar_spec(WANG_CONTROLLER))
+register(planar_spec(FBL_ANKLE_CONTROLLER))
 
 
 def _gh2010_build(timestep=None):

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxgait import models
+from jaxgait.control.fblankle import FBL_ANKLE, lift_fbl_ankle
 from jaxgait.control.fblplus import FBLPLUS, lift_fbl
 from jaxgait.control.network_json import network_from_dict
 from jaxgait.control.spinal import NetworkError, spinal_controller
@@ -326,38 +327,56 @@ def load_preset(name_or_path: str | Path) -> tuple[str, np.ndarray, dict]:
     return preset_from_dict(doc, where=str(path))
 
 
-def write_neutral_preset(src, dst) -> np.ndarray:
-    """Write the FBL+ preset ``dst`` made of the FBL preset ``src`` and neutral extras.
-
-    The result walks exactly like ``src`` (see "Reduction to FBL" in
-    :mod:`jaxgait.control.fblplus`).  ``src`` is anything :func:`load_preset` accepts.
-    Returns the (38,) vector.
-    """
-    path = resolve_preset(src)
-    model, vec, _ = load_preset(path)
-    if model != "fbl":
-        raise ValueError(f"{path}: an FBL preset is needed, this one is for model {model!r}")
-    try:
-        source = path.resolve().relative_to(Path.cwd().resolve()).as_posix()
-    except ValueError:
-        source = str(path)
-    vec_plus = lift_fbl(vec)
-    FBLPLUS.check(vec_plus, where=str(dst))
-    description = (
-        f"FBL+ walking on flat ground (thesis 2.1.3): the FBL walking preset {source} with the "
+#: Models that extend FBL with neutral extras: model -> (table, lift function, description
+#: of the neutral extras).  A neutral preset of one walks exactly like its FBL source.
+_NEUTRAL_LIFTS = {
+    "fblplus": (
+        FBLPLUS,
+        lift_fbl,
+        "FBL+ walking on flat ground (thesis 2.1.3): the FBL walking preset {source} with the "
         "10 extra FBL+ parameters neutral: swing-end PD gains kp/kd of HFL, GLU and VAS = 0, "
         "stance-end CoM threshold d_st_end = 3 foot lengths (its upper bound, never reached "
         "in stance, so stance end comes from double support only, as in FBL), hip/knee "
         "targets and d_sw_end at the table's initial values (inactive with zero gains). "
-        "It walks exactly like the source preset."
-    )
+        "It walks exactly like the source preset.",
+    ),
+    "fbl_ankle": (
+        FBL_ANKLE,
+        lift_fbl_ankle,
+        "fbl_ankle (jaxgait.control.fblankle): the FBL walking preset {source} with the 3 "
+        "ankle extras neutral: swing SOL and GAS drive k_sw = 1 (FBL's S0) and no TA "
+        "foot-lowering damping (G_TA_v = 0).  It walks exactly like the source preset.",
+    ),
+}
+
+
+def write_neutral_preset(src, dst, model: str = "fblplus") -> np.ndarray:
+    """Write the ``model`` preset ``dst`` made of the FBL preset ``src`` and neutral extras.
+
+    ``model`` is ``"fblplus"`` (see "Reduction to FBL" in :mod:`jaxgait.control.fblplus`) or
+    ``"fbl_ankle"`` (:mod:`jaxgait.control.fblankle`); the result walks exactly like
+    ``src``, which is anything :func:`load_preset` accepts.  Returns the vector.
+    """
+    if model not in _NEUTRAL_LIFTS:
+        raise ValueError(f"no neutral lift to model {model!r}; known: {', '.join(_NEUTRAL_LIFTS)}")
+    table, lift, text = _NEUTRAL_LIFTS[model]
+    path = resolve_preset(src)
+    src_model, vec, _ = load_preset(path)
+    if src_model != "fbl":
+        raise ValueError(f"{path}: an FBL preset is needed, this one is for model {src_model!r}")
+    try:
+        source = path.resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        source = str(path)
+    lifted = lift(vec)
+    table.check(lifted, where=str(dst))
     save_preset(
         Path(dst),
-        "fblplus",
-        FBLPLUS,
-        vec_plus,
-        description=description,
+        model,
+        table,
+        lifted,
+        description=text.format(source=source),
         source=source,
         extras_neutral=True,
     )
-    return vec_plus
+    return lifted

@@ -59,6 +59,10 @@ flat ground and 120 m on the perturbed environments, entrance conditions of Tabl
   10 ``grf_corr``, 5 ``corr_hip``, 5 ``corr_knee``, 10 ``corr_ankle`` and 0.02
   ``energy_per_m`` (per J/m).  A cheaper search than the stage PSO (exp3's full-size run never
   left its angles stage, the ankle being the weakest joint).
+* fbl_ankle_humanlike: the same search on the ``fbl_ankle`` model
+  (:mod:`jaxgait.control.fblankle`: a swing drive of SOL and GAS apart from their stance
+  S0, and TA damping of the foot's plantarflexion in stance), from ``fbl_ankle_walk``
+  (``fbl_humanlike`` with the extras neutral, the same gait).
 * wang_walk_1p25 / 1p0 / 1p5 / 1p75 (Wang et al. 2012 section 6: nwalk, swalk, fwalk,
   vwalk): CMA-ES with Wang's population 50 on the 8-muscle controller; nwalk starts from the
   table's initial values (the Geyer-Herr gains extended to RF, SI and SP), swalk and fwalk
@@ -519,6 +523,22 @@ EXPERIMENTS: dict[str, Experiment] = {
                 "stance GRF peak above 1.3 BW, rewards for the GRF and joint correlations with "
                 "Winter, and energy per metre"
             ),
+            optimiser="cmaes",
+            optimiser_options=(("sigma_init", 0.05),),
+            weights=_HUMANLIKE_WEIGHTS,
+            d_lim=math.inf,
+            duration=20.0,
+            particles=16,
+            iterations=60,
+        ),
+        _e(
+            name="fbl_ankle_humanlike",
+            description=(
+                "fbl_humanlike_cmaes's objective on the fbl_ankle model (FBL + swing "
+                "plantarflexor drive + TA foot-lowering damping), from fbl_ankle_walk"
+            ),
+            model="fbl_ankle",
+            init="fbl_ankle_walk",
             optimiser="cmaes",
             optimiser_options=(("sigma_init", 0.05),),
             weights=_HUMANLIKE_WEIGHTS,
