@@ -345,7 +345,8 @@ _NEUTRAL_LIFTS = {
         lift_fbl_ankle,
         "fbl_ankle (jaxgait.control.fblankle): the FBL walking preset {source} with the 3 "
         "ankle extras neutral: swing SOL and GAS drive k_sw = 1 (FBL's S0) and no TA "
-        "foot-lowering damping (G_TA_v = 0).  It walks exactly like the source preset.",
+        "foot-lowering damping (G_TA_v = 0).  The same law as FBL's: it walks like the source "
+        "preset, to float32 rounding.",
     ),
 }
 
@@ -354,8 +355,9 @@ def write_neutral_preset(src, dst, model: str = "fblplus") -> np.ndarray:
     """Write the ``model`` preset ``dst`` made of the FBL preset ``src`` and neutral extras.
 
     ``model`` is ``"fblplus"`` (see "Reduction to FBL" in :mod:`jaxgait.control.fblplus`) or
-    ``"fbl_ankle"`` (:mod:`jaxgait.control.fblankle`); the result walks exactly like
-    ``src``, which is anything :func:`load_preset` accepts.  Returns the vector.
+    ``"fbl_ankle"`` (:mod:`jaxgait.control.fblankle`); the result walks like ``src`` (FBL+:
+    bit for bit; fbl_ankle: to float32 rounding), which is anything :func:`load_preset`
+    accepts.  Returns the vector.
     """
     if model not in _NEUTRAL_LIFTS:
         raise ValueError(f"no neutral lift to model {model!r}; known: {', '.join(_NEUTRAL_LIFTS)}")

@@ -10,8 +10,8 @@ from jaxgait.presets import load_preset
 from jaxgait.world import envs
 
 
-def _walk(vec, duration, timestep=None):
-    model = models.get_model("fbl", timestep)
+def _walk(vec, duration, timestep=None, model="fbl"):
+    model = models.get_model(model, timestep)
     cfg = sim.SimConfig(duration=duration, chunk_s=1.0)
     env = envs.make_env("flat", jax.random.PRNGKey(0))
     tr, ev, sm, _ = sim.make_rollout(model, cfg, batched=False)(jnp.asarray(vec, jnp.float32), env)
@@ -53,6 +53,17 @@ def test_fbl_humanlike_walks_20s_without_the_forefoot_slap():
     m = _walk(vec, 20.0)
     assert not m["fell"] and 1.2 <= m["mean_speed_mps"] <= 1.4
     assert m["grf_peak_max_bw"] < 2.5 and m["grf_corr"] > 0.85
+
+
+def test_fbl_ankle_humanlike_walks_20s_more_like_winter():
+    """fbl_ankle's human-like preset walks 20 s at 1.2-1.4 m/s with stance GRF peaks under
+    fbl_humanlike's 1.8 BW, a vertical GRF correlating 0.9 with Winter's and an ankle
+    correlation above fbl_humanlike's 0.64 (experiments/humanlike/README.md)."""
+    model, vec, _ = load_preset("fbl_ankle_humanlike")
+    assert model == "fbl_ankle"
+    m = _walk(vec, 20.0, model=model)
+    assert not m["fell"] and 1.2 <= m["mean_speed_mps"] <= 1.4
+    assert m["grf_peak_max_bw"] < 1.8 and m["grf_corr"] > 0.9 and m["corr_ankle"] > 0.68
 
 
 @pytest.mark.slow

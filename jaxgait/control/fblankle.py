@@ -30,9 +30,11 @@ more columns (:data:`S_ANKLE`, :data:`S_DANKLE`) after FBL's :data:`~jaxgait.con
 FBL's law reads its own columns and ignores them.
 
 **Reduction to FBL.**  With k_sw_SOL = k_sw_GAS = 1 and G_TA_v = 0 (the table's initial
-values, :data:`NEUTRAL`) the law is FBL's bit for bit (``jnp.where`` selects FBL's values),
-so :func:`lift_fbl_ankle` turns any FBL parameter set into one with the same gait, the
-start of a search for a human-like ankle.
+values, :data:`NEUTRAL`) the law is FBL's bit for bit evaluated op by op (``jnp.where``
+selects FBL's values), so :func:`lift_fbl_ankle` turns any FBL parameter set into one with
+the same gait, the start of a search for a human-like ankle.  Compiled into a rollout, XLA
+may fuse the wider graph otherwise than FBL's: the rollouts then agree to float32 rounding,
+not bit for bit (unlike FBL+, whose sensors are FBL's).
 
 The rules are this project's (not from the thesis or Geyer & Herr 2010); their ranges are
 chosen wide: k spans the swing drive from none to FBL's, and G_TA_v = 1 s/rad gives full
