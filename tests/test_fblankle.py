@@ -135,13 +135,16 @@ def rollouts(fbl_model):
 
 def test_rollout_is_fbl_to_rounding_when_neutral(rollouts):
     """The same law, compiled in another graph: XLA may fuse it otherwise, so the rollouts
-    agree to float32 rounding (about 1e-7 at 0.2 s, 4e-5 at 0.8 s), not bit for bit."""
+    agree to float32 rounding, not bit for bit: states within about 4e-5 at 0.8 s, contact
+    forces (stiff) within 0.1 % of their range."""
     ref, both = rollouts
     neutral = jax.tree.map(lambda x: x[0], both)
     assert int(ref[1].n) >= 1  # a touchdown happened: both phases were exercised
     assert int(neutral[1].n) == int(ref[1].n)
     for a, b in zip(jax.tree.leaves(ref), jax.tree.leaves(neutral), strict=True):
-        np.testing.assert_allclose(np.asarray(b), np.asarray(a), rtol=1e-3, atol=1e-3)
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        scale = max(float(np.max(np.abs(a), initial=0.0)), 1e-6)  # contact forces: stiff
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-3 * scale)
 
 
 def test_rollout_changes_when_rules_on(rollouts):
