@@ -295,6 +295,24 @@ FBL = ParamTable(
 )
 
 
+def lift_with_extras(vec_fbl, neutral: dict, extras: dict | None, label: str) -> np.ndarray:
+    """An FBL vector (28,) followed by extra parameters: ``neutral``'s names in order, each
+    the value ``extras`` gives, else its neutral one (the lift of FBL+ and ``fbl_ankle``).
+
+    Raises:
+      ValueError: ``vec_fbl`` is not 28 values; KeyError: an unknown extra (named, with
+      ``label``, the model's name).
+    """
+    vec_fbl = np.asarray(vec_fbl, dtype=float)
+    if vec_fbl.shape != (FBL.size,):
+        raise ValueError(f"expected an FBL vector of {FBL.size} values, got {vec_fbl.shape}")
+    unknown = sorted(set(extras or {}) - set(neutral))
+    if unknown:
+        raise KeyError(f"unknown {label} extra parameter(s): {', '.join(unknown)}")
+    values = {**neutral, **(extras or {})}
+    return np.concatenate([vec_fbl, [float(values[n]) for n in neutral]])
+
+
 #: The FBL controller (thesis 2.1.2.3): Table 2.4's law, 5/10/20 ms delays.
 FBL_CONTROLLER = reflex_controller(
     "fbl", FBL, fbl_stimulation, description="Geyer-Herr reflex walker (thesis 2.1.2, Table 2.4)"

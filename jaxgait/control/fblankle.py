@@ -62,6 +62,7 @@ from jaxgait.control.fbl import (
     delay_taps_for,
     delayed_stimulation,
     fbl_stimulation,
+    lift_with_extras,
     packed_sensors,
     reflex_controller,
     with_commands,
@@ -109,14 +110,7 @@ def lift_fbl_ankle(vec_fbl, extras: dict | None = None) -> np.ndarray:
       vec_fbl: (28,) FBL parameters in :data:`jaxgait.control.fbl.FBL` order.
       extras: name -> value for some of :data:`EXTRA_NAMES`; the rest take :data:`NEUTRAL`.
     """
-    vec_fbl = np.asarray(vec_fbl, dtype=float)
-    if vec_fbl.shape != (FBL.size,):
-        raise ValueError(f"expected an FBL vector of {FBL.size} values, got {vec_fbl.shape}")
-    extras = {**NEUTRAL, **(extras or {})}
-    unknown = sorted(set(extras) - set(EXTRA_NAMES))
-    if unknown:
-        raise KeyError(f"unknown fbl_ankle extra parameter(s): {', '.join(unknown)}")
-    return np.concatenate([vec_fbl, [float(extras[n]) for n in EXTRA_NAMES]])
+    return lift_with_extras(vec_fbl, NEUTRAL, extras, "fbl_ankle")
 
 
 def fbl_ankle_stimulation(p: dict, s: jax.Array) -> jax.Array:

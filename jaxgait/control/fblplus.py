@@ -88,6 +88,7 @@ from jaxgait.control.fbl import (
     S_STANCE,
     VAS,
     fbl_stimulation,
+    lift_with_extras,
     reflex_controller,
     reflex_step,
 )
@@ -161,14 +162,7 @@ def lift_fbl(vec_fbl, extras: dict | None = None) -> np.ndarray:
       vec_fbl: (28,) FBL parameters in :data:`jaxgait.control.fbl.FBL` order.
       extras: name -> value for some of :data:`EXTRA_NAMES`; the rest take :data:`NEUTRAL`.
     """
-    vec_fbl = np.asarray(vec_fbl, dtype=float)
-    if vec_fbl.shape != (FBL.size,):
-        raise ValueError(f"expected an FBL vector of {FBL.size} values, got {vec_fbl.shape}")
-    extras = {**NEUTRAL, **(extras or {})}
-    unknown = sorted(set(extras) - set(EXTRA_NAMES))
-    if unknown:
-        raise KeyError(f"unknown FBL+ extra parameter(s): {', '.join(unknown)}")
-    return np.concatenate([vec_fbl, [float(extras[n]) for n in EXTRA_NAMES]])
+    return lift_with_extras(vec_fbl, NEUTRAL, extras, "FBL+")
 
 
 def phases_plus(p: dict, s: jax.Array) -> tuple[jax.Array, jax.Array]:

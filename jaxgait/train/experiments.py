@@ -441,6 +441,15 @@ _HUMANLIKE_WEIGHTS = (
     ("energy_per_m", 0.02),
 )
 # shared settings of several experiments (keyword groups of ``Experiment``)
+_HUMANLIKE_CMAES = {
+    "optimiser": "cmaes",
+    "optimiser_options": (("sigma_init", 0.05),),
+    "weights": _HUMANLIKE_WEIGHTS,
+    "d_lim": math.inf,
+    "duration": 20.0,
+    "particles": 16,
+    "iterations": 60,
+}
 _FBLPLUS = {"model": "fblplus", "init": "fblplus_walk"}
 _RUNNING = {"targets": (("v_desired", 2.5),), "duration": 30.0, "v0": 2.5}
 _ROBUST_RUN = {"stages": _ROBUST, "d_lim": 120.0, "duration": 120.0, "worst_of_k": 5}
@@ -523,13 +532,7 @@ EXPERIMENTS: dict[str, Experiment] = {
                 "stance GRF peak above 1.3 BW, rewards for the GRF and joint correlations with "
                 "Winter, and energy per metre"
             ),
-            optimiser="cmaes",
-            optimiser_options=(("sigma_init", 0.05),),
-            weights=_HUMANLIKE_WEIGHTS,
-            d_lim=math.inf,
-            duration=20.0,
-            particles=16,
-            iterations=60,
+            **_HUMANLIKE_CMAES,
         ),
         _e(
             name="fbl_ankle_humanlike",
@@ -539,13 +542,7 @@ EXPERIMENTS: dict[str, Experiment] = {
             ),
             model="fbl_ankle",
             init="fbl_ankle_walk",
-            optimiser="cmaes",
-            optimiser_options=(("sigma_init", 0.05),),
-            weights=_HUMANLIKE_WEIGHTS,
-            d_lim=math.inf,
-            duration=20.0,
-            particles=16,
-            iterations=60,
+            **_HUMANLIKE_CMAES,
         ),
         _e(
             name="exp4",
