@@ -328,7 +328,8 @@ def load_preset(name_or_path: str | Path) -> tuple[str, np.ndarray, dict]:
 
 
 #: Models that extend FBL with neutral extras: model -> (table, lift function, description
-#: of the neutral extras).  A neutral preset of one walks exactly like its FBL source.
+#: of the neutral extras).  A neutral preset of one walks like its FBL source (module
+#: docstrings: FBL+ bit for bit, fbl_ankle to float32 rounding).
 _NEUTRAL_LIFTS = {
     "fblplus": (
         FBLPLUS,

@@ -199,10 +199,10 @@ def packed_sensors(sens: Sensors) -> jax.Array:
     )
 
 
-def reflex_init(ctrl: Controller, sens: Sensors, dt: float) -> DelayLine:
-    """State of a reflex controller: one delay line over the packed sensors, as long as the
-    longest delay, filled with the start sensors."""
-    return delay_init(max(delay_taps_for(ctrl.settings, dt)), packed_sensors(sens))
+def reflex_init(ctrl: Controller, sens: Sensors, dt: float, pack=packed_sensors) -> DelayLine:
+    """State of a reflex controller: one delay line over the packed sensors (``pack``: FBL's
+    by default), as long as the longest delay, filled with the start sensors."""
+    return delay_init(max(delay_taps_for(ctrl.settings, dt)), pack(sens))
 
 
 def with_commands(p: dict, command: dict) -> dict:
@@ -211,12 +211,21 @@ def with_commands(p: dict, command: dict) -> dict:
     return {**p, "theta_ref": p["theta_ref"] + command["lean_offset"]}
 
 
-def reflex_step(ctrl: Controller, p: dict, sens: Sensors, lines: DelayLine, command: dict, dt):
-    """Stimulation (2, 7) of a reflex controller: the packed sensors through the delay line,
-    the law on each group's delayed copy (:func:`delayed_stimulation`)."""
+def reflex_step(
+    ctrl: Controller,
+    p: dict,
+    sens: Sensors,
+    lines: DelayLine,
+    command: dict,
+    dt,
+    pack=packed_sensors,
+):
+    """Stimulation (2, 7) of a reflex controller: the packed sensors (``pack``: FBL's by
+    default) through the delay line, the law on each group's delayed copy
+    (:func:`delayed_stimulation`)."""
     taps = delay_taps_for(ctrl.settings, dt)
     return delayed_stimulation(
-        with_commands(p, command), lines, packed_sensors(sens), ctrl.settings.law, taps
+        with_commands(p, command), lines, pack(sens), ctrl.settings.law, taps
     )
 
 

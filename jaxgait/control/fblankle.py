@@ -45,12 +45,12 @@ several rad/s).
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait.control.delay import DelayLine, delay_init
 from jaxgait.control.fbl import (
     FBL,
     GAS,
@@ -59,15 +59,14 @@ from jaxgait.control.fbl import (
     S_STANCE,
     SOL,
     TA,
-    delay_taps_for,
-    delayed_stimulation,
     fbl_stimulation,
     lift_with_extras,
     packed_sensors,
     reflex_controller,
-    with_commands,
+    reflex_init,
+    reflex_step,
 )
-from jaxgait.control.interface import Controller, Sensors
+from jaxgait.control.interface import Sensors
 from jaxgait.core.params import ParamSpec, ParamTable
 
 #: Columns packed after FBL's sensors: Geyer-Herr ankle angle phi_a [rad] and its rate
@@ -133,19 +132,6 @@ def packed_sensors_ankle(sens: Sensors) -> jax.Array:
     return jnp.concatenate([packed_sensors(sens), sens.phi[:, 2:3], sens.dphi[:, 2:3]], axis=1)
 
 
-def fbl_ankle_init(ctrl: Controller, sens: Sensors, dt: float) -> DelayLine:
-    """One delay line over the extended packed sensors, filled with the start sensors."""
-    return delay_init(max(delay_taps_for(ctrl.settings, dt)), packed_sensors_ankle(sens))
-
-
-def fbl_ankle_step(ctrl: Controller, p: dict, sens: Sensors, lines, command: dict, dt):
-    """FBL's reflex step (:func:`jaxgait.control.fbl.reflex_step`) on the extended sensors."""
-    taps = delay_taps_for(ctrl.settings, dt)
-    return delayed_stimulation(
-        with_commands(p, command), lines, packed_sensors_ankle(sens), ctrl.settings.law, taps
-    )
-
-
 #: The ``fbl_ankle`` controller: FBL's delays, command and rules plus the two ankle rules.
 FBL_ANKLE_CONTROLLER = dataclasses.replace(
     reflex_controller(
@@ -154,6 +140,6 @@ FBL_ANKLE_CONTROLLER = dataclasses.replace(
         fbl_ankle_stimulation,
         description="FBL with a swing plantarflexor drive and TA foot-lowering damping",
     ),
-    init=fbl_ankle_init,
-    step=fbl_ankle_step,
+    init=functools.partial(reflex_init, pack=packed_sensors_ankle),
+    step=functools.partial(reflex_step, pack=packed_sensors_ankle),
 )
