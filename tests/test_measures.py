@@ -255,6 +255,22 @@ def test_double_stance_fraction_and_cycle_frequency():
     assert expect == pytest.approx(0.2, abs=0.02)
     assert float(out["cycle_frequency_hz"]) == pytest.approx(1.0, rel=1e-5)
     assert int(out["n_cycles"]) == 5  # right touchdowns at 0.5 ... 5.5
+    assert float(out["flight_fraction"]) == 0.0  # a walk: some foot is always down
+
+
+def test_flight_fraction_of_a_run():
+    T = 600
+    st = np.zeros((T, 2), bool)
+    t = np.arange(T) * DT
+    ph = np.mod(t - 0.5, 1.0)
+    st[:, 0] = ph < 0.3  # right stance 30 % of the cycle
+    st[:, 1] = np.mod(ph + 0.5, 1.0) < 0.3  # left: same, half a cycle later
+    out = measure(*make_rollout(stance=st), skip=2)
+    window = t >= 1.5
+    expect = np.mean(~st[window, 0] & ~st[window, 1])
+    assert expect == pytest.approx(0.4, abs=0.02)  # two flights of 20 % per cycle
+    assert float(out["flight_fraction"]) == pytest.approx(expect, abs=1e-6)
+    assert float(out["double_stance_fraction"]) == 0.0
 
 
 def test_no_events_no_nan():
@@ -308,3 +324,20 @@ def test_jit_and_vmap_over_a_batch():
         single = measure(*r)
         for k, v in single.items():
             np.testing.assert_allclose(out[k][i], v, atol=1e-4, err_msg=k)
+
+
+def test_running_task_terms_count_only_for_a_rollout_that_stays_up():
+    from jaxgait.train.objective import criterion_value
+
+    def m(fell):
+        return {
+            "fell": jnp.asarray(fell),
+            "distance_m": jnp.asarray(10.0),
+            "double_stance_fraction": jnp.asarray(0.1),
+            "flight_fraction": jnp.asarray(0.25),
+        }
+
+    assert float(criterion_value("flight", m(False), {})) == pytest.approx(0.25)
+    assert float(criterion_value("no_double_stance", m(False), {})) == pytest.approx(-0.1)
+    assert float(criterion_value("flight", m(True), {})) == 0.0  # a fall earns no flight
+    assert float(criterion_value("no_double_stance", m(True), {})) == -1.0

@@ -66,6 +66,7 @@ MEASURE_UNITS: dict[str, str] = {
     "step_length_left_var_m2": "m^2",
     "n_steps_left": "count",
     "double_stance_fraction": "-",
+    "flight_fraction": "-",
     "cycle_frequency_hz": "Hz",
     "energy_J": "J",
     "energy_J_per_m": "J/m",
@@ -488,6 +489,8 @@ def compute_measures(
         ``n_steps_left``, ``n_steps_right`` (int): the same per touching-down leg.
       * ``double_stance_fraction`` [-]: fraction of alive samples, from the touchdown of
         event ``skip`` on (all alive samples if there is none), with both legs in stance.
+      * ``flight_fraction`` [-]: fraction of the same samples with neither leg in stance
+        (the flight phases of running; 0 in walking).
       * ``cycle_frequency_hz`` [Hz]: right-leg touchdowns per second, (k - 1) / (t_k - t_1)
         over the k usable right touchdowns; 0 if k < 2.
       * ``energy_J`` [J]: metabolic energy spent (E).
@@ -559,6 +562,8 @@ def _compute_measures(trace, events, summary, reference, skip):
     both = stance[:, 0] & stance[:, 1]
     n_win = jnp.sum(window.astype(jnp.int32))
     ds = jnp.sum((window & both).astype(jnp.int32)) / jnp.maximum(n_win, 1)
+    neither = ~stance[:, 0] & ~stance[:, 1]
+    flight = jnp.sum((window & neither).astype(jnp.int32)) / jnp.maximum(n_win, 1)
 
     n_alive = jnp.sum(alive.astype(jnp.int32))
     lean_trace = jnp.sum(jnp.where(alive, trace.qpos[:, 2], 0.0)) / jnp.maximum(n_alive, 1)
@@ -586,6 +591,7 @@ def _compute_measures(trace, events, summary, reference, skip):
         "step_length_snr": snr(mean, var, cnt),
         **side,
         "double_stance_fraction": ds.astype(f),
+        "flight_fraction": flight.astype(f),
         "cycle_frequency_hz": freq,
         "energy_J": energy,
         "energy_J_per_m": energy / dist,

@@ -50,11 +50,12 @@ fall, so a search from a falling start is not pulled towards v* before it walks)
 ``effort`` = -(0.004 / mass) J_effort, the effort term of Wang et al. 2012's return
 (section 5; J_effort = 100 J_M + 0.5 J_L with the rollout's metabolic model, the measure
 ``effort``); ``no_double_stance`` = -(double-stance fraction) of a rollout that did not
-fall (-1 if it fell), for running; the human-likeness criteria ``grf_corr`` (the vertical
-GRF's correlation with Winter's over the last cycle), ``grf_peak`` (-(per-stance peak above
-:data:`GRF_PEAK_BOUND_BW`) in BW), ``corr_hip``, ``corr_knee``, ``corr_ankle`` (each joint's
-correlation; ``angles`` is their minimum) and ``rom`` (-(|knee| + |ankle| range-of-motion
-difference from Winter's) / 10 deg).
+fall (-1 if it fell), ``flight`` = its flight fraction (0 if it fell) and ``flight_time`` =
+flight fraction x duration [s] (fallen or not), for running; the
+human-likeness criteria ``grf_corr`` (the vertical GRF's correlation with Winter's over the
+last cycle), ``grf_peak`` (-(per-stance peak above :data:`GRF_PEAK_BOUND_BW`) in BW),
+``corr_hip``, ``corr_knee``, ``corr_ankle`` (each joint's correlation; ``angles`` is their
+minimum) and ``rom`` (-(|knee| + |ankle| range-of-motion difference from Winter's) / 10 deg).
 """
 
 from __future__ import annotations
@@ -105,6 +106,18 @@ def _no_double_stance(m: Measures) -> jax.Array:
     return -(up * m["double_stance_fraction"] + (1.0 - up))
 
 
+def _flight(m: Measures) -> jax.Array:
+    """Flight fraction (neither foot in stance) of a rollout that did not fall, 0 for one that
+    fell: the running task term that a gait without double stance can still miss."""
+    return _upright(m) * m["flight_fraction"]
+
+
+def _flight_time(m: Measures) -> jax.Array:
+    """Time in flight [s] (flight fraction x duration), fallen or not: a graded running term
+    that rewards a hop before the gait that carries it stays up."""
+    return m["flight_fraction"] * m["duration_s"]
+
+
 #: Bound [BW] above which the per-stance peak vertical GRF is penalised (``grf_peak``): the
 #: human loading peak is about 1.1 BW at 1.3 m/s (Winter), 1.3 BW leaves room for speed.
 GRF_PEAK_BOUND_BW = 1.3
@@ -127,6 +140,8 @@ EXTRA_CRITERIA = {
     "upright_speed": _upright_speed,
     "effort": _effort,
     "no_double_stance": _no_double_stance,
+    "flight": _flight,
+    "flight_time": _flight_time,
     "grf_corr": lambda m: m["grf_corr"],
     "grf_peak": _grf_peak,
     "corr_hip": lambda m: m["corr_hip"],
@@ -164,6 +179,8 @@ CRITERION_SCALE = {
     "upright_speed": 0.1,
     "effort": 0.5,
     "no_double_stance": 0.1,
+    "flight": 0.1,
+    "flight_time": 1.0,
     "grf_corr": 0.1,
     "grf_peak": 0.5,
     "corr_hip": 0.1,
