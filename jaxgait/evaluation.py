@@ -177,7 +177,9 @@ def run(
       seed: environment PRNG seed (same seed, same terrain and pushes).
       model: model name; default the preset's ``model`` (must agree if given).
       v0: initial forward speed [m/s]; default the preset's ``v0`` entry (written by
-        ``train`` for its best), else :attr:`jaxgait.sim.SimConfig.v0` (1.3).
+        ``train`` for its best), else :attr:`jaxgait.sim.SimConfig.v0` (1.3).  The start
+        posture is the preset's ``pose`` entry (a key of :data:`jaxgait.sim.POSES`), else
+        Geyer's.
       reference: human joint angles the correlations and standard scores compare with:
         ``"walking"`` (Winter, 1.33 m/s) or ``"running"`` (Fukuchi, 3.5 m/s).
       log_dt: interval of the logged trajectory [s], a whole multiple of the physics step
@@ -214,7 +216,13 @@ def run(
     if isinstance(v0, bool) or not isinstance(v0, (int, float)) or not math.isfinite(v0):
         raise EvaluateError(f"initial speed v0 must be a finite number [m/s], got {v0!r}")
     cfg_kw = {} if log_dt is None else {"log_dt": _check_log_dt(log_dt, mdl.dt)}
-    cfg = sim.SimConfig(duration=float(duration), v0=float(v0), **cfg_kw)
+    pose = doc.get("pose", sim.SimConfig.pose)
+    if pose not in sim.POSES:
+        raise EvaluateError(
+            f"preset {label}: unknown start pose {pose!r}; "
+            f"available: {', '.join(sorted(sim.POSES))}"
+        )
+    cfg = sim.SimConfig(duration=float(duration), v0=float(v0), pose=pose, **cfg_kw)
     environment = envs.make_env(env, jax.random.PRNGKey(int(seed)))
     params = mdl.table.as_jnp(vec)
     trace, events, summary, final = _jit_rollout(name, cfg)(params, environment)

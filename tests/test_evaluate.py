@@ -417,3 +417,20 @@ def test_save_scene_on_slope(tmp_path, capsys):
         )
         assert 10.0 - dist == pytest.approx(float(terrain.height(x)), abs=2e-3), x
     assert float(terrain.height(5.0)) > 0.1  # the slope (from x = 2 m) is in the scene
+
+
+def test_a_preset_starts_in_its_own_pose_and_an_unknown_pose_is_refused():
+    from jaxgait import evaluation
+    from jaxgait.sim.model import POSES
+
+    d = json.loads(presets.resolve_preset("fbl_walk").read_text())
+    run = evaluation.run({**d, "pose": "run"}, duration=0.01)
+    assert run.cfg.pose == "run"
+    knee_sw = math.radians(POSES["run"][2][1])  # the swing knee of the running pose
+    q0 = np.asarray(run.trace.qpos[0])
+    assert np.isclose(q0, knee_sw, atol=0.02).any()
+    assert not np.isclose(
+        np.asarray(evaluation.run(d, duration=0.01).trace.qpos[0]), knee_sw, atol=0.02
+    ).any()
+    with pytest.raises(evaluation.EvaluateError, match="unknown start pose 'crouch'"):
+        evaluation.run({**d, "pose": "crouch"}, duration=0.01)

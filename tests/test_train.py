@@ -242,6 +242,17 @@ def test_early_stop_rule():
         Experiment(name="x", stop_speed_tol=0.1, targets=())
 
 
+def test_start_pose_is_written_only_when_not_geyers_and_reaches_the_simulator():
+    exp = tiny("quickstart", duration=1.0)
+    assert "pose" not in exp.to_dict()  # configs from before the field still match
+    run = exp.replace(pose="run")
+    assert run.to_dict()["pose"] == "run"
+    assert Experiment.from_dict(run.to_dict()) == run
+    from jaxgait.train.evaluator import PopulationEvaluator
+
+    assert PopulationEvaluator(run).sim_cfg.pose == "run"
+
+
 def test_cli_resume_iterations_extends(tmp_path, capsys):
     out = str(tmp_path / "run")
     base = ["quickstart", "--particles", "4", "--duration", "1", "--set", "batch_size=4"]
@@ -403,6 +414,7 @@ def test_unknown_experiment_and_fields_list_the_valid_ones():
         ({"stages": (("distance", None), ("nope", None))}, "unknown criterion"),
         ({"targets": {"v_wanted": 1.0}}, "unknown target"),
         ({"optimiser_options": {"c3": 1.0}}, "optimiser_options"),
+        ({"pose": "crouch"}, "invalid pose='crouch': must be one of geyer, run, thatte"),
     ],
 )
 def test_out_of_range_overrides(override, msg):

@@ -112,6 +112,10 @@ POSES = {
     "geyer": (5.0, (5.0, 5.0, 5.0), (40.0, 5.0, 0.0)),
     # Thatte's ControlParams.m: the same but the swing hip at 150 deg (section 4)
     "thatte": (5.0, (5.0, 5.0, 5.0), (30.0, 5.0, 0.0)),
+    # a running mid-stance (human running near 3 m/s, Novacheck 1998, rounded): the stance
+    # knee bent 35 deg and the ankle dorsiflexed 20 deg under a foot about flat, the swing
+    # leg behind and high with its knee bent 100 deg
+    "run": (8.0, (20.0, 35.0, 20.0), (20.0, 100.0, -10.0)),
 }
 
 

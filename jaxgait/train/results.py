@@ -137,6 +137,7 @@ def save_best(
         stage=int(state.best_stage),
         value=float(state.best_value),
         v0=float(exp.v0),
+        **({} if exp.pose == "geyer" else {"pose": exp.pose}),
         **extra,
     )
     _atomic_write(
