@@ -10,9 +10,9 @@ from jaxgait.presets import load_preset
 from jaxgait.world import envs
 
 
-def _walk(vec, duration, timestep=None, model="fbl"):
+def _walk(vec, duration, timestep=None, model="fbl", v0=sim.SimConfig.v0):
     model = models.get_model(model, timestep)
-    cfg = sim.SimConfig(duration=duration, chunk_s=1.0)
+    cfg = sim.SimConfig(duration=duration, chunk_s=1.0, v0=v0)
     env = envs.make_env("flat", jax.random.PRNGKey(0))
     tr, ev, sm, _ = sim.make_rollout(model, cfg, batched=False)(jnp.asarray(vec, jnp.float32), env)
     return {k: float(v) for k, v in compute_measures(tr, ev, sm, skip=2).items() if v.ndim == 0}
@@ -43,6 +43,17 @@ def test_full_size_reproduction_presets_walk_20s_on_flat_ground(name):
     m = _walk(vec, 20.0)
     assert not m["fell"] and m["duration_s"] == pytest.approx(20.0, abs=0.01)
     assert 1.2 <= m["mean_speed_mps"] <= 1.45 and m["n_steps"] >= 20
+
+
+@pytest.mark.slow
+def test_fblplus_fastwalk_walks_20s_fast_with_double_stance_and_no_flight():
+    """exp5's best (the start of fblplus_run) walks 20 s from its own v0 above 2.2 m/s, and is a
+    walk: double stance, no flight (experiments/full/README.md)."""
+    model, vec, doc = load_preset("fblplus_fastwalk")
+    assert model == "fblplus" and doc["v0"] == 2.5
+    m = _walk(vec, 20.0, model="fblplus", v0=doc["v0"])
+    assert not m["fell"] and m["mean_speed_mps"] > 2.2
+    assert m["double_stance_fraction"] > 0.05 and m["flight_fraction"] == 0.0
 
 
 def test_fbl_humanlike_walks_20s_without_the_forefoot_slap():
