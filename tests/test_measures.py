@@ -241,13 +241,16 @@ def test_energy_speed_cot_and_lean_by_hand():
         assert f"``{k}``" in M.compute_measures.__doc__, k
 
 
-def test_double_stance_fraction_and_cycle_frequency():
-    T = 600
-    st = np.zeros((T, 2), bool)
-    t = np.arange(T) * DT
+def _alternating_stance(duty):
+    """(t, stance (T, 2)): 1 s cycles from t = 0.5 s, each leg in stance for ``duty`` of the
+    cycle, the left half a cycle after the right."""
+    t = np.arange(600) * DT
     ph = np.mod(t - 0.5, 1.0)
-    st[:, 0] = ph < 0.6  # right stance 60 % of the cycle
-    st[:, 1] = np.mod(ph + 0.5, 1.0) < 0.6  # left: same, half a cycle later
+    return t, np.stack([ph < duty, np.mod(ph + 0.5, 1.0) < duty], axis=1)
+
+
+def test_double_stance_fraction_and_cycle_frequency():
+    t, st = _alternating_stance(0.6)  # each leg in stance 60 % of the cycle
     out = measure(*make_rollout(stance=st), skip=2)
     window = t >= 1.5  # from the touchdown of event 2 on
     expect = np.mean(st[window, 0] & st[window, 1])
@@ -259,12 +262,7 @@ def test_double_stance_fraction_and_cycle_frequency():
 
 
 def test_flight_fraction_of_a_run():
-    T = 600
-    st = np.zeros((T, 2), bool)
-    t = np.arange(T) * DT
-    ph = np.mod(t - 0.5, 1.0)
-    st[:, 0] = ph < 0.3  # right stance 30 % of the cycle
-    st[:, 1] = np.mod(ph + 0.5, 1.0) < 0.3  # left: same, half a cycle later
+    t, st = _alternating_stance(0.3)  # each leg in stance 30 % of the cycle
     out = measure(*make_rollout(stance=st), skip=2)
     window = t >= 1.5
     expect = np.mean(~st[window, 0] & ~st[window, 1])

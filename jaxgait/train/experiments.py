@@ -599,9 +599,8 @@ EXPERIMENTS: dict[str, Experiment] = {
             particles=16,
             iterations=150,
             d_lim=math.inf,
-            duration=20.0,
             confirm_best=True,
-            **{k: v for k, v in _RUNNING.items() if k != "duration"},
+            **{**_RUNNING, "duration": 20.0},
         ),
         _e(
             name="exp5_table",

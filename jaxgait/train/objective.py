@@ -51,11 +51,11 @@ fall, so a search from a falling start is not pulled towards v* before it walks)
 (section 5; J_effort = 100 J_M + 0.5 J_L with the rollout's metabolic model, the measure
 ``effort``); ``no_double_stance`` = -(double-stance fraction) of a rollout that did not
 fall (-1 if it fell), ``flight`` = its flight fraction (0 if it fell) and ``flight_time`` =
-flight fraction x duration [s] (fallen or not), for running; the
-human-likeness criteria ``grf_corr`` (the vertical GRF's correlation with Winter's over the
-last cycle), ``grf_peak`` (-(per-stance peak above :data:`GRF_PEAK_BOUND_BW`) in BW),
-``corr_hip``, ``corr_knee``, ``corr_ankle`` (each joint's correlation; ``angles`` is their
-minimum) and ``rom`` (-(|knee| + |ankle| range-of-motion difference from Winter's) / 10 deg).
+flight fraction x duration [s] (fallen or not), for running; the human-likeness criteria
+``grf_corr`` (the vertical GRF's correlation with Winter's over the last cycle), ``grf_peak``
+(-(per-stance peak above :data:`GRF_PEAK_BOUND_BW`) in BW), ``corr_hip``, ``corr_knee``,
+``corr_ankle`` (each joint's correlation; ``angles`` is their minimum) and ``rom``
+(-(|knee| + |ankle| range-of-motion difference from Winter's) / 10 deg).
 """
 
 from __future__ import annotations
