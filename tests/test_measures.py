@@ -339,3 +339,12 @@ def test_running_task_terms_count_only_for_a_rollout_that_stays_up():
     assert float(criterion_value("no_double_stance", m(False), {})) == pytest.approx(-0.1)
     assert float(criterion_value("flight", m(True), {})) == 0.0  # a fall earns no flight
     assert float(criterion_value("no_double_stance", m(True), {})) == -1.0
+
+
+def test_flight_time_rewards_the_time_in_the_air_of_a_fall_too():
+    from jaxgait.train.objective import criterion_value
+
+    m = {"flight_fraction": jnp.asarray(0.25), "duration_s": jnp.asarray(4.0)}
+    for fell in (False, True):  # 0.25 of 4 s in the air, whether the rollout fell or not
+        got = criterion_value("flight_time", {**m, "fell": jnp.asarray(fell)}, {})
+        assert float(got) == pytest.approx(1.0)
