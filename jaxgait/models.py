@@ -32,7 +32,7 @@ from jaxgait.control.fblplus import FBLPLUS_CONTROLLER
 from jaxgait.control.gait import GaitConfig
 from jaxgait.control.gh2010 import GH2010_CONTROLLER
 from jaxgait.control.interface import Controller
-from jaxgait.control.spinal import FBL_NET, spinal_controller
+from jaxgait.control.spinal import FBL_NET, FBLPLUS_NET, spinal_controller
 from jaxgait.control.wang import WANG_CONTROLLER
 from jaxgait.core.params import ParamTable
 from jaxgait.sim.model import planar_model
@@ -116,6 +116,7 @@ def unregister(name: str) -> None:
 register(planar_spec(FBL_CONTROLLER))
 register(planar_spec(FBLPLUS_CONTROLLER))
 register(planar_spec(spinal_controller(FBL_NET)))
+register(planar_spec(spinal_controller(FBLPLUS_NET)))
 register(
     ModelSpec(
         name="taga",

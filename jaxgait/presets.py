@@ -144,16 +144,18 @@ def _register_network(doc: dict, model: str, where: str) -> None:
             f"{where}: a network preset cannot take the name of the built-in model {model!r}"
         )
     auto = doc.get("autopilot")
-    table = doc.get("table", "fbl")
-    if table != ("auto_speed" if auto is not None else "fbl"):
-        raise PresetError(
-            f"{where}: a network model drives FBL's table (its automatic speed control the "
-            f"'auto_speed' table), not {table!r}"
-        )
     try:
         net = network_from_dict(doc["network"], model, str(doc.get("description", "")), where)
     except NetworkError as e:
         raise PresetError(str(e)) from None
+    table = doc.get("table", "fbl")
+    if auto is not None and net.base != "fbl":
+        raise PresetError(f"{where}: automatic speed control drives FBL networks only")
+    if table != ("auto_speed" if auto is not None else net.base):
+        raise PresetError(
+            f"{where}: a network model on {net.base!r} drives the table {net.base!r} (its "
+            f"automatic speed control the 'auto_speed' table), not {table!r}"
+        )
     ctrl = spinal_controller(net)
     if auto is not None:
         ctrl = _autopilot(auto, ctrl, model, where)

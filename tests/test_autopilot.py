@@ -67,17 +67,19 @@ def test_grade_estimate_from_the_feet_at_touchdown():
     # the slope rule adds k_sw g to omega and k_sb g to O_INBAS (no speed error here)
     cmds = _inner_commands()
     p = dict(zip(AUTO_SPEED.names, map(float, AUTO_SPEED.init), strict=True))
-    p.update(k_sw=-2.0, k_sb=0.5, k_sc=0.25, k_ff=0.0, k_p=0.0, k_i=0.0)
+    p.update(k_sw=-2.0, k_sb=0.5, k_sc=0.25, k_lean_g=0.4, k_ff=0.0, k_p=0.0, k_i=0.0)
     sched = {c.name: jnp.asarray(c.default) for c in cmds}
     out = speed_commands(p, 1.3, 1.3, 0.0, sched, cmds, g)
     assert float(out["omega"]) == pytest.approx(float(sched["omega"]) - 2.0 * g, abs=1e-6)
     assert float(out["O_INBAS"]) == pytest.approx(0.5 * g, abs=1e-6)
     assert float(out["O_INCPG"]) == pytest.approx(0.25 * g, abs=1e-6)
+    assert float(out["lean_offset"]) == pytest.approx(0.4 * g, abs=1e-6)
     # the feedforward gains move their command by k (v* - v_ref), nothing else
-    p.update(k_sw=0.0, k_sb=0.0, k_sc=0.0, k_a_bas=0.5, v_ref=1.2)
+    p.update(k_sw=0.0, k_sb=0.0, k_sc=0.0, k_lean_g=0.0, k_a_bas=0.5, k_lean_v=-0.1, v_ref=1.2)
     out = speed_commands(p, 1.4, 1.4, 0.0, sched, cmds, 0.0)
+    ff = {"A_INBAS": 0.5 * 0.2, "lean_offset": -0.1 * 0.2}
     for c in cmds:
-        want = float(sched[c.name]) + (0.5 * 0.2 if c.name == "A_INBAS" else 0.0)
+        want = float(sched[c.name]) + ff.get(c.name, 0.0)
         assert float(out[c.name]) == pytest.approx(want, abs=1e-6), c.name
 
 
@@ -85,8 +87,8 @@ def test_targets_are_limited_to_the_speeds_held():
     p = {"v_min": 1.1, "v_max": 1.3}
     got = [float(target_speed(p, v)) for v in (0.7, 1.1, 1.2, 1.3, 1.8)]
     assert got == pytest.approx([1.1, 1.1, 1.2, 1.3, 1.3])
-    lo, hi = AUTO_SPEED.init[AUTO_SPEED.names.index("v_min")], AUTO_SPEED.init[-6]
-    assert AUTO_SPEED.names[-6] == "v_max"  # the defaults leave every declared target alone
+    # the defaults leave every declared target alone
+    lo, hi = (AUTO_SPEED.init[AUTO_SPEED.names.index(n)] for n in ("v_min", "v_max"))
     assert (lo, hi) == (0.2, 3.0)
 
 

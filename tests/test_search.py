@@ -28,14 +28,14 @@ def test_windows_are_the_last_seconds_of_each_setting():
 
 
 def test_column_schedules_step_through_x_per_lane():
-    cmds = models.get_model("fbl_net").controller.commands  # A_INSEN, O_INSEN
+    cmds = models.get_model("fbl_net").controller.commands  # A_INSEN, O_INSEN, lean_offset
     s = Search("A_INSEN", (0.9, 1.0, 1.1), "O_INSEN", (-0.01, 0.02), hold_s=5.0, warmup_s=2.0)
     b = column_schedules(cmds, s)
-    assert b.values.shape == (2, 4, 2) and b.t.shape == (2, 4)
+    assert b.values.shape == (2, 4, 3) and b.t.shape == (2, 4)
     lane1 = type(b)(t=b.t[1], values=b.values[1], interp=b.interp)
-    np.testing.assert_allclose(np.asarray(lane1.at(1.0)), [1.0, 0.0], rtol=1e-6)  # defaults
-    np.testing.assert_allclose(np.asarray(lane1.at(9.0)), [1.0, 0.02], rtol=1e-6)
-    np.testing.assert_allclose(np.asarray(lane1.at(6.999)), [0.9, 0.02], rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(lane1.at(1.0)), [1.0, 0.0, 0.0], atol=1e-7)  # defaults
+    np.testing.assert_allclose(np.asarray(lane1.at(9.0)), [1.0, 0.02, 0.0], atol=1e-7)
+    np.testing.assert_allclose(np.asarray(lane1.at(6.999)), [0.9, 0.02, 0.0], atol=1e-7)
     with pytest.raises(SpinalError, match="not one of this model's"):
         column_schedules(cmds, Search("omega", (1.0,), "O_INSEN", (0.0,)))
 

@@ -79,6 +79,36 @@ def test_motoneurons_sum_to_fbl_law(seed):
     np.testing.assert_allclose(np.asarray(stim), np.asarray(fbl.fbl_stimulation(P, s)), atol=2e-6)
 
 
+@pytest.mark.parametrize("seed", range(2))
+def test_reorganised_fblplus_law_is_fblplus(seed):
+    # FBL+'s stance end by CoM distance and its swing-end PD rules, on the network's
+    # per-delay-group inputs (3 groups x 2 legs), summed at the motoneurons: FBL+'s law
+    from jaxgait.control import fblplus
+    from jaxgait.control.spinal import _delayed_inputs
+
+    rng = np.random.default_rng(seed)
+    s = np.array(_sensors(rng, 6))
+    # rows are (group, leg): the right leg in stance with the CoM past d_st_end (stance end
+    # without double support), the left in swing with its foot ahead of d_sw_end (swing end)
+    s[:, fbl.S_STANCE], s[:, fbl.S_DS] = np.tile([1.0, 0.0], 3), 0.0
+    s[:, fbl.S_DCOM] = np.tile([1.0, -1.0], 3) + rng.uniform(-0.3, 0.3, 6)
+    s[:, fbl.S_HIP] = rng.uniform(2.5, 3.6, 6)
+    s[:, fbl.S_DHIP] = rng.normal(0, 2.0, 6)
+    vals = dict(zip(fblplus.FBLPLUS.names, map(float, fblplus.FBLPLUS.init), strict=True))
+    vals.update(kp_HFL=1.2, kd_HFL=0.3, kp_GLU=0.8, kd_GLU=0.2, kp_VAS=1.5, kd_VAS=0.4)
+    vals.update(d_st_end=0.5, d_sw_end=-0.4)
+    p = {k: jnp.float32(v) for k, v in vals.items()}
+    s = jnp.asarray(s)
+    r, gate, direct = _delayed_inputs(p, s.reshape(3, 2, -1), plus=True)
+    stim = np.asarray(ins.motoneurons(direct, r * gate))
+    law = np.asarray(fblplus.fblplus_stimulation(p, s)).reshape(3, 2, -1)
+    want = np.stack([law[fbl.MUSCLE_DELAY_GROUP[m], :, m] for m in range(fbl.N_MUSCLES)], -1)
+    np.testing.assert_allclose(stim, want, atol=3e-6)
+    # the rules are live on these inputs: without them the network is FBL's, not FBL+'s
+    r0, g0, d0 = _delayed_inputs(p, s.reshape(3, 2, -1))
+    assert np.abs(np.asarray(ins.motoneurons(d0, r0 * g0)) - want).max() > 1e-2
+
+
 def _vec():
     _, vec, _ = presets.load_preset("fbl_walk")
     return jnp.asarray(vec, jnp.float32)
@@ -128,6 +158,15 @@ def test_a_changed_control_vector_acts_only_after_the_change():
     before, after = t < 0.6 - 1e-6, t > 0.65
     np.testing.assert_array_equal(np.asarray(base.stim)[before], np.asarray(changed.stim)[before])
     assert np.abs(np.asarray(base.stim)[after] - np.asarray(changed.stim)[after]).max() > 0.01
+    # the trunk-lean command is an offset of theta_ref: from t = 0 it is the same rollout as
+    # the parameter moved by as much
+    lean = schedule(model.controller.commands, [(0.0, {"lean_offset": 0.03})])
+    by_command = _roll(model, lean)[0]
+    env = envs.make_env("flat", jax.random.PRNGKey(0))
+    vec = _vec().at[fbl.FBL.names.index("theta_ref")].add(0.03)
+    by_param = _ROLLOUTS[id(model)][1](vec, env, None)[0]
+    np.testing.assert_allclose(np.asarray(by_command.qpos), np.asarray(by_param.qpos), atol=1e-5)
+    assert np.abs(np.asarray(by_command.qpos) - np.asarray(base.qpos)).max() > 1e-3
 
 
 def _feedforward_doc(tmp_path, ff_after=0):
@@ -208,6 +247,18 @@ def test_network_json_round_trip_and_errors(tmp_path):
     with pytest.raises(NetworkError, match="kinds"):
         Network(name="x", kinds=("sen",) * 3)
     assert "fbl_net" in models.model_names() and FBL_NET.members("bas") == ()
+    # a network on FBL+ keeps its base through JSON (written only when not FBL's) and
+    # drives FBL+'s table; a preset giving it FBL's table is refused
+    plus = network_from_dict(dict(doc["network"], base="fblplus"), "t_rt_plus")
+    assert plus.base == "fblplus" and network_to_dict(plus)["base"] == "fblplus"
+    assert "base" not in again and spinal_controller(plus).table.name == "fblplus"
+    assert models.get_model("fblplus_net").table.name == "fblplus"
+    bad = dict(json.loads(path.read_text()), model="t_rt_plus2")
+    bad["network"]["base"] = "fblplus"
+    with pytest.raises(presets.PresetError, match="drives the table 'fblplus'"):
+        presets.preset_from_dict(bad, where="x.json")
+    with pytest.raises(NetworkError, match="base 'wang'"):
+        Network(name="x", base="wang")
 
 
 # ------------------------------------------------------------------- building models
@@ -280,6 +331,7 @@ def test_build_network_kinds_and_groups(kind):
     assert cmds[:2] == ["A_INSEN", "O_INSEN"]
     assert ("omega" in cmds) == (kind in ("3fbl", "3fbl_prime"))
     assert ("A_INCPG" in cmds) == (kind != "fblminus")
+    assert cmds[-1] == "lean_offset"  # the trunk-lean command, beyond the thesis's C
 
 
 def test_spinal_cli_errors_are_clear(capsys):

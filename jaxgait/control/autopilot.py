@@ -17,6 +17,7 @@ wraps a network controller, takes the target speed v* [m/s] as its command and e
    O_INBAS = O_sched + k_ff (v* - v_ref) + k_p e + k_i I + k_sb g   [stim],
    O_INCPG = O_sched + k_o_cpg (v* - v_ref) + k_sc g                [stim],
    omega   = omega_sched + k_w (v* - v_ref) + k_sw g                [cycles/s],
+   lean    = lean_sched + k_lean_v (v* - v_ref) + k_lean_g g          [rad],
    and every other command c of the network c = c_sched + k_c (v* - v_ref) (the feedforward
    gains ``k_a_sen``, ``k_o_sen``, ``k_a_cpg``, ``k_a_bas``; 0 by default: a direction in C
    along which the speed changes), each clipped to the range the network declares
@@ -54,7 +55,10 @@ FEEDFORWARD = {
     "A_INCPG": "k_a_cpg",
     "O_INCPG": "k_o_cpg",
     "A_INBAS": "k_a_bas",
+    "lean_offset": "k_lean_v",
 }
+#: the slope rule's gains on the commands other than O_INBAS and omega (per unit grade)
+SLOPE_RULE = {"O_INCPG": "k_sc", "lean_offset": "k_lean_g"}
 
 #: Gains of the speed law (see the module docstring).
 AUTO_SPEED = ParamTable(
@@ -78,6 +82,8 @@ AUTO_SPEED = ParamTable(
         ParamSpec("k_a_cpg", 0.0, -2.0, 2.0, _FF + "A_INCPG", "1/(m/s)"),
         ParamSpec("k_o_cpg", 0.0, -0.5, 0.5, _FF + "O_INCPG", "1/(m/s)"),
         ParamSpec("k_a_bas", 0.0, -2.0, 2.0, _FF + "A_INBAS", "1/(m/s)"),
+        ParamSpec("k_lean_v", 0.0, -0.5, 0.5, _FF + "lean_offset", "rad/(m/s)"),
+        ParamSpec("k_lean_g", 0.0, -1.0, 1.0, "slope rule: lean_offset per unit grade", "rad"),
     ),
 )
 
@@ -133,7 +139,7 @@ def speed_commands(p: dict, v_target, v, integral, sched: dict, commands, grade=
         out["O_INBAS"] = jnp.clip(o + p["k_sb"] * grade, *lim["O_INBAS"])
     for c, k in FEEDFORWARD.items():
         if c in out:
-            slope = p["k_sc"] * grade if c == "O_INCPG" else 0.0
+            slope = p[SLOPE_RULE[c]] * grade if c in SLOPE_RULE else 0.0
             out[c] = jnp.clip(out[c] + p[k] * dv + slope, *lim[c])
     if "omega" in out:
         w = out["omega"] + p["k_w"] * dv + p["k_sw"] * grade

@@ -26,6 +26,8 @@ def network_to_dict(net: Network) -> dict:
         "bas_gated": bool(net.bas_gated),
         "ff_after": int(net.ff_after),
     }
+    if net.base != "fbl":
+        d["base"] = net.base
     for k in net.cpg_idx:
         d["cpg"][IN_NAMES[k]] = {
             "mean": float(net.cpg_mean[k]),
@@ -88,6 +90,7 @@ def network_from_dict(d: dict, name: str, description: str = "", where: str = "n
         "tau_mn",
         "bas_gated",
         "ff_after",
+        "base",
     }
     try:
         return Network(
@@ -104,6 +107,7 @@ def network_from_dict(d: dict, name: str, description: str = "", where: str = "n
             tau_mn=float(d.get("tau_mn", TAU_MN)),
             bas_gated=bool(d.get("bas_gated", True)),
             ff_after=int(d.get("ff_after", 3)),
+            base=str(d.get("base", "fbl")),
             description=description,
             provenance={k: v for k, v in d.items() if k not in known},
         )

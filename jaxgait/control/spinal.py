@@ -43,11 +43,13 @@ from jaxgait.control.fbl import (
     FBL,
     MUSCLE_DELAY_GROUP,
     N_MUSCLES,
+    S_DS,
     ReflexSettings,
     delay_taps_for,
     packed_sensors,
     reflex_init,
 )
+from jaxgait.control.fblplus import FBLPLUS, phases_plus, swing_end_pd
 from jaxgait.control.interface import Controller, Sensors
 from jaxgait.control.interneurons import (
     IN_NAMES,
@@ -59,6 +61,8 @@ from jaxgait.control.interneurons import (
 )
 
 KINDS = ("sen", "bas", "cpg")
+#: The reflex laws a network reorganises, with their parameter tables.
+BASES = {"fbl": FBL, "fblplus": FBLPLUS}
 GROUPS = ("sen", "cpg", "bas")
 #: Default link time constants [s]: 0 passes the signal through (FBL's behaviour).
 TAU_IN = 0.0
@@ -92,6 +96,10 @@ class Network:
         from the start; 0 = from t = 0); before it every IN is sensory, as in the thesis's
         own code, which starts on the full reflex and switches after a few cycles.  The
         clocks run (and restart at touchdowns) from the start.
+      base: the reflex law the network reorganises: ``"fbl"`` (FBL's 28 parameters) or
+        ``"fblplus"`` (FBL+'s 38: the same 15 IN_SEN, with FBL+'s stance end by CoM distance
+        gating the stance-end IN and its swing-end PD rules added at the motoneurons as
+        direct sensory pathways, like the swing initiation; thesis 2.1.3, 7.3.2's walk-run).
       description, provenance: free text / JSON-able data for listings and presets.
     """
 
@@ -108,10 +116,13 @@ class Network:
     tau_mn: float = TAU_MN
     bas_gated: bool = True
     ff_after: int = 3
+    base: str = "fbl"
     description: str = ""
     provenance: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        if self.base not in BASES:
+            raise NetworkError(f"network {self.name!r}: base {self.base!r} not in {tuple(BASES)}")
         for what, vals, allowed in (("kinds", self.kinds, KINDS), ("groups", self.groups, GROUPS)):
             if len(vals) != N_IN:
                 raise NetworkError(
@@ -143,11 +154,21 @@ class Network:
         return tuple(IN_NAMES[k] for k, v in enumerate(self.kinds) if v == kind)
 
 
+#: A descending command beyond the thesis's C: an offset of the trunk-lean reference
+#: theta_ref [rad] of the trunk-lean IN_SEN (TL, always sensory) and of the swing hip's lean
+#: compensation, as FBL's ``lean_offset`` (:data:`jaxgait.control.fbl.LEAN_OFFSET`).  At its
+#: default 0 the network is the thesis's.  Declared range [-0.2, 0.3] rad (-11 to 17 deg).
+LEAN_COMMAND = Command(
+    "lean_offset", 0.0, "rad", "added to theta_ref (trunk-lean reference)", -0.2, 0.3
+)
+
+
 def control_commands(groups, with_cpg: bool, omega: float) -> tuple[Command, ...]:
     """The control vector of a network (thesis 6.2.2): A/O of each group present, SEN
-    first, then CPG, BAS, and omega when the network has IN_CPG (defaults eq. 6.1-6.3:
-    A = 1, O = 0).  Declared ranges, for feedback laws: A in [0, 2], O in [-0.3, 0.3]
-    [stim], omega in [0.3, 2] cycles/s (wider than every setting the thesis searched)."""
+    first, then CPG, BAS, omega when the network has IN_CPG (defaults eq. 6.1-6.3:
+    A = 1, O = 0), and last the trunk-lean offset :data:`LEAN_COMMAND` (0).  Declared
+    ranges, for feedback laws: A in [0, 2], O in [-0.3, 0.3] [stim], omega in [0.3, 2]
+    cycles/s (wider than every setting the thesis searched), lean in [-0.2, 0.3] rad."""
     out = []
     for g in GROUPS:
         if g == "sen" or g in groups:
@@ -162,6 +183,7 @@ def control_commands(groups, with_cpg: bool, omega: float) -> tuple[Command, ...
         out.append(
             Command("omega", float(omega), "cycles/s", "CPG central-clock frequency", 0.3, 2.0)
         )
+    out.append(LEAN_COMMAND)
     return tuple(out)
 
 
@@ -206,16 +228,34 @@ def _alpha(tau: float, dt: float) -> float:
     return 1.0 if tau <= 0 else float(1.0 - np.exp(-dt / tau))
 
 
-def _delayed_inputs(p, delayed):
+def _plus_rules(p, rows):
+    """FBL+'s phases on (rows, S) delayed sensors: the double-support flag replaced by the
+    stance-end mask (as :func:`jaxgait.control.fblplus.fblplus_stimulation`) and the
+    swing-end PD additions (rows, 7), zero outside swing end."""
+    stance_end, swing_end = phases_plus(p, rows)
+    ds = jnp.where(stance_end & (rows[:, S_DS] <= 0.5), 1.0, rows[:, S_DS]).astype(rows.dtype)
+    add = jnp.where(swing_end[:, None], swing_end_pd(p, rows), 0.0)
+    return rows.at[:, S_DS].set(ds), add
+
+
+def _delayed_inputs(p, delayed, plus: bool = False):
     """IN_SEN inputs and gates of each IN from its target's delay group: delayed
-    (3, 2, S) -> x, gate, direct (2, 7)."""
+    (3, 2, S) -> x, gate, direct (2, 7); with ``plus`` FBL+'s rules (:func:`_plus_rules`)."""
     g, legs, ns = delayed.shape
-    x, gate = insen_inputs(p, delayed.reshape(g * legs, ns))
+    rows = delayed.reshape(g * legs, ns)
+    add = None
+    if plus:
+        rows, add = _plus_rules(p, rows)
+        delayed = rows.reshape(g, legs, ns)
+    x, gate = insen_inputs(p, rows)
     x, gate = x.reshape(g, legs, -1), gate.reshape(g, legs, -1)
     pick = jnp.asarray(IN_DELAY_GROUP)[None, None, :].repeat(legs, 1)
     x = jnp.take_along_axis(x, pick, axis=0)[0]
     gate = jnp.take_along_axis(gate, pick, axis=0)[0]
-    d = direct_terms(p, delayed.reshape(g * legs, ns)).reshape(g, legs, -1)
+    d = direct_terms(p, rows)
+    if add is not None:
+        d = d + add
+    d = d.reshape(g, legs, -1)
     mpick = jnp.asarray(MUSCLE_DELAY_GROUP)[None, None, :].repeat(legs, 1)
     return x, gate, jnp.take_along_axis(d, mpick, axis=0)[0]
 
@@ -281,7 +321,9 @@ def spinal_step(ctrl: Controller, p: dict, sens: Sensors, s: SpinalState, comman
     dtype = sens.f_norm.dtype
     taps = delay_taps_for(st, dt)
     delayed, lines = delay_taps(s.lines, packed_sensors(sens), taps)
-    r, gate, direct = _delayed_inputs(p, delayed)
+    if "lean_offset" in command:
+        p = {**p, "theta_ref": p["theta_ref"] + command["lean_offset"]}
+    r, gate, direct = _delayed_inputs(p, delayed, net.base == "fblplus")
     y = s.y + _alpha(net.tau_in, dt) * (r - s.y)
     A, O, omega = _controls(ctrl, command, dtype)
     theta, awo = s.theta, s.awo
@@ -311,7 +353,7 @@ def spinal_controller(net: Network, delays: tuple = ReflexSettings.delays) -> Co
     settings = SpinalSettings(delays=delays, network=net, kind=kind, group=group, coef=coef)
     return Controller(
         name=net.name,
-        table=FBL,
+        table=BASES[net.base],
         n_muscles=N_MUSCLES,
         init=spinal_init,
         step=spinal_step,
@@ -328,4 +370,10 @@ NETWORK_KINDS = ("fbl_net", "fblminus", "3fbl", "3fbl_prime")
 FBL_NET = Network(
     name="fbl_net",
     description="FBL reorganised as SEN -> IN_SEN -> MN (thesis 6.1), control vector A/O_INSEN",
+)
+#: FBL+ reorganised the same way (its extra phase rules as direct sensory pathways).
+FBLPLUS_NET = Network(
+    name="fblplus_net",
+    base="fblplus",
+    description="FBL+ reorganised as SEN -> IN_SEN -> MN (thesis 6.1, 2.1.3), control A/O_INSEN",
 )

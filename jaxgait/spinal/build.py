@@ -28,10 +28,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from jaxgait.control.fbl import FBL, GLU, HFL
+from jaxgait.control.fbl import GLU, HFL
 from jaxgait.control.interneurons import IN_NAMES, IN_SEN, N_IN
 from jaxgait.control.network_json import network_to_dict
-from jaxgait.control.spinal import NETWORK_KINDS, Network
+from jaxgait.control.spinal import BASES, NETWORK_KINDS, Network
 from jaxgait.spinal.record import Analysis, SpinalError
 
 CANDIDATES = ("muscle", "replaceable")
@@ -75,6 +75,8 @@ def select_walking(
     check_s: float = 20.0,
     omega: float | None = OMEGA,
     log=print,
+    base: str = "fbl",
+    start: dict | None = None,
 ) -> tuple[list[str], list[dict]]:
     """Greedy selection with a walking check: go through the candidates least variable first
     (by s) and replace one when every model of ``kinds`` built with the replacements kept so
@@ -92,8 +94,10 @@ def select_walking(
         res = {"name": nm, "s": an.factor(nm, "s")}
         ok = True
         for kind in kinds:
-            net = build_network(kind, an, trial, f"_check_{kind}_{len(tried)}", omega=omega)
-            doc = model_preset(net, kind, vec, source, trial, an, {})
+            net = build_network(
+                kind, an, trial, f"_check_{kind}_{len(tried)}", omega=omega, base=base
+            )
+            doc = model_preset(net, kind, vec, source, trial, an, {}, start)
             try:
                 rep = evaluate.run(doc, duration=check_s).report
             finally:
@@ -128,6 +132,7 @@ def build_network(
     omega: float | None = OMEGA,
     ff_after: int = 3,
     description: str = "",
+    base: str = "fbl",
 ) -> Network:
     """The :class:`~jaxgait.control.spinal.Network` of ``kind`` (:data:`NETWORK_KINDS`);
     ``omega`` [cycles/s] is the clock's default (None: the gait's stride frequency)."""
@@ -169,15 +174,25 @@ def build_network(
         tau_mn=tau_mn,
         bas_gated=bas_gated,
         ff_after=ff_after,
+        base=base,
         description=description,
     )
 
 
 def model_preset(
-    net: Network, kind: str, vec, source: str, replaced: list[str], an: Analysis, settings: dict
+    net: Network,
+    kind: str,
+    vec,
+    source: str,
+    replaced: list[str],
+    an: Analysis,
+    settings: dict,
+    start: dict | None = None,
 ) -> dict:
-    """The preset document of a built model (see the module docstring)."""
-    params = dict(zip(FBL.names, (float(v) for v in np.asarray(vec, float)), strict=False))
+    """The preset document of a built model (see the module docstring); ``start``: the
+    source preset's start entries (``v0``, ``pose``), kept so the model starts as its gait."""
+    table = BASES[net.base]
+    params = dict(zip(table.names, (float(v) for v in np.asarray(vec, float)), strict=False))
     network = network_to_dict(net)
     network.update(
         kind=kind,
@@ -189,8 +204,9 @@ def model_preset(
     )
     return {
         "model": net.name,
-        "table": FBL.name,
+        "table": table.name,
         "description": net.description,
         "params": params,
         "network": network,
+        **(start or {}),
     }

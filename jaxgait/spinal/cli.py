@@ -17,9 +17,11 @@ Subcommands (each prints a table or JSON line, and writes its JSON and figures t
     range PRESET [PRESET ...] [--targets 0.5:1.8:14] [--duration 30]        # speeds held
     climb PRESET [PRESET ...] [--seeds 3] [--duration 150]                 # Fig. 7.5
     maps PRESET [--n 7] [--omegas 6] [--out DIR]                           # Fig. 7.9-7.10
+    walkrun PRESET [--drive NAME=WALK:RUN ...] [--phases 10,20,10,20,10]    # thesis 7.3.2
 
 A built model preset is named ``<prefix><kind>_walk`` (``fblminus_walk``, ``3fbl_walk``,
-``3fbl_prime_walk``, ``fblnet_walk`` with an empty prefix) and holds the FBL parameters of
+``3fbl_prime_walk``, ``fblnet_walk`` with an empty prefix) and holds the FBL (or, built from
+an FBL+ gait, FBL+) parameters of
 the source gait plus the network.
 """
 
@@ -131,7 +133,10 @@ def cmd_build(a) -> dict:
     bad = sorted(set(kinds) - set(NETWORK_KINDS))
     if bad or not kinds:
         raise SpinalError(f"--kinds: unknown {bad}; valid: {', '.join(NETWORK_KINDS)}")
+    from jaxgait import models
+
     rec, an = _analysis(a.preset, a.duration, a.skip)
+    base = models.get_model(rec.model).controller.settings.network.base
     source = str(a.preset)
     settings = {
         "rule": a.rule,
@@ -149,6 +154,8 @@ def cmd_build(a) -> dict:
             a.candidates,
             check_s=a.check_s,
             omega=_omega(a.omega),
+            base=base,
+            start=rec.start,
         )
         settings.update(check_s=a.check_s, tried=tried)
     else:
@@ -173,8 +180,9 @@ def cmd_build(a) -> dict:
             omega=_omega(a.omega),
             ff_after=a.ff_after,
             description=desc,
+            base=base,
         )
-        doc = model_preset(net, kind, rec.vec, source, replaced, an, settings)
+        doc = model_preset(net, kind, rec.vec, source, replaced, an, settings, rec.start)
         path = write_json(Path(a.out_dir), f"{name}.json", doc)
         written[kind] = str(path)
         print(f"wrote {path}")

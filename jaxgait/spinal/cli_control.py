@@ -8,7 +8,9 @@
 * ``climb PRESET...``: distance and steepest grade on the increasing slope, seeds as
   mean +- SD (thesis Fig. 7.5; :func:`jaxgait.analysis.robustness.walk_tests`);
 * ``maps PRESET``: the systematic searches of thesis Fig. 7.9-7.10, the commands of Fig. 7.8
-  two by two over its ranges (n x n values) for each of several omega values.
+  two by two over its ranges (n x n values) for each of several omega values;
+* ``walkrun PRESET [--drive NAME=WALK:RUN ...]``: the commands ramped from walking to
+  running values and back in one rollout (thesis 7.3.2; :mod:`jaxgait.spinal.walkrun`).
 """
 
 from __future__ import annotations
@@ -204,6 +206,45 @@ def cmd_maps(a) -> dict:
     return res
 
 
+def cmd_walkrun(a) -> dict:
+    from jaxgait.spinal.figures import plot_walkrun
+    from jaxgait.spinal.walkrun import WalkRun, run_walkrun
+
+    drive = {}
+    for item in a.drive:
+        name, _, rng = item.partition("=")
+        try:
+            vals = [float(v) for v in rng.split(":")]
+        except ValueError:
+            vals = []
+        if not name.strip() or len(vals) != 2:
+            raise SpinalError(f"--drive takes NAME=WALK:RUN, got {item!r}")
+        drive[name.strip()] = (vals[0], vals[1])
+    ph = floats(a.phases, "--phases")
+    if len(ph) != 5:
+        raise SpinalError(f"--phases takes 5 durations [s], got {a.phases!r}")
+    wr = WalkRun(drive or WalkRun().drive, *ph, window_s=a.window)
+    r = run_walkrun(a.preset, wr, env=a.env, seed=a.seed)
+    w = r["windows"]
+    for ph_name in dict.fromkeys(w["phase"]):
+        rows = [j for j, p in enumerate(w["phase"]) if p == ph_name]
+        sel = lambda k, rows=rows: np.asarray(w[k], float)[rows]
+        if np.all(np.isnan(sel("speed_mps"))):
+            continue
+        print(
+            f"{ph_name:<11} speed {np.nanmin(sel('speed_mps')):.2f}-"
+            f"{np.nanmax(sel('speed_mps')):.2f} m/s, double stance min "
+            f"{np.nanmin(sel('double_stance_fraction')):.3f}, flight max "
+            f"{np.nanmax(sel('flight_fraction')):.3f}"
+        )
+    print(f"fell at {r['fell_at_s']:.1f} s ({r['fell_in']})" if r["fell"] else "no fall")
+    out = Path(a.out)
+    stem = f"walkrun_{label(a.preset)}"
+    r["figure"] = str(plot_walkrun(out / f"{stem}.png", r))
+    r["json"] = str(write_json(out, f"{stem}.json", r))
+    return {"json": r["json"], "figure": r["figure"], "fell": r["fell"]}
+
+
 def add_parsers(sub) -> None:
     """Add the control sub-commands to ``sub``, each with its handler as ``func``."""
     q = sub.add_parser("tune", help="train the command law's gains with CMA-ES")
@@ -251,3 +292,19 @@ def add_parsers(sub) -> None:
     q.add_argument("--warmup", type=float, default=10.0, help="seconds at the defaults first")
     q.add_argument("--out", default="runs/spinal/maps")
     q.set_defaults(func=cmd_maps)
+    q = sub.add_parser("walkrun", help="thesis 7.3.2: commands driven to running and back")
+    q.add_argument("preset")
+    q.add_argument(
+        "--drive",
+        action="append",
+        default=[],
+        help="NAME=WALK:RUN, repeatable (default A_INBAS=1:1.6 and A_INCPG=1:1.6)",
+    )
+    q.add_argument(
+        "--phases", default="10,20,10,20,10", help="walk, ramp up, hold, ramp down, walk [s]"
+    )
+    q.add_argument("--window", type=float, default=2.0, help="measuring window [s] (2)")
+    q.add_argument("--env", default="flat")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--out", default="runs/spinal/walkrun")
+    q.set_defaults(func=cmd_walkrun)

@@ -10,7 +10,8 @@ Each function draws on its own Agg :class:`~matplotlib.figure.Figure` and return
   the vertical GRF of several models (Fig. 7.2);
 * :func:`plot_robustness`: C_angles, max push and max slope change, mean +- SD (Fig. 7.4);
 * :func:`plot_climb`: distance and grade reached on the increasing slope (Fig. 7.5);
-* :func:`plot_speed_range`, :func:`plot_tuning`: constant targets held; CMA-ES progress.
+* :func:`plot_speed_range`, :func:`plot_tuning`: constant targets held; CMA-ES progress;
+* :func:`plot_walkrun`: commands, speed, double stance and flight of a walk-run rollout.
 """
 
 from __future__ import annotations
@@ -293,4 +294,34 @@ def plot_maps(path, pairs: list[dict], measure: str) -> Path:
     if im is not None:
         fig.colorbar(im, ax=axes, shrink=0.6, label=measure)
     fig.suptitle(f"{pairs[0]['model']}: systematic search, {measure} (blank = fell)", fontsize=9)
+    return _save(fig, path)
+
+
+def plot_walkrun(path, r: dict) -> Path:
+    """A walk-run rollout (:mod:`jaxgait.spinal.walkrun`): the driven commands, the speed and
+    the double-stance and flight fractions per window over time, the phases shaded."""
+    w = r["windows"]
+    t = np.asarray(w["t_end_s"]) - 0.5 * (w["t_end_s"][1] - w["t_end_s"][0])
+    fig = Figure(figsize=(9, 6), layout="constrained")
+    axs = fig.subplots(3, 1, sharex=True)
+    for name, vals in w["commands"].items():
+        axs[0].plot(t, vals, lw=1.5, label=name)
+    axs[0].set_ylabel("command")
+    axs[1].plot(t, np.asarray(w["speed_mps"], float), "o-", color="tab:red", ms=3)
+    axs[1].set_ylabel("speed [m/s]")
+    for key, c in (("double_stance_fraction", "tab:blue"), ("flight_fraction", "tab:orange")):
+        axs[2].plot(t, np.asarray(w[key], float), "o-", color=c, ms=3, label=key.split("_f")[0])
+    axs[2].set_ylabel("fraction of time")
+    axs[2].set_xlabel("time [s]")
+    edges = np.cumsum([0.0] + list(r["phases_s"].values()))
+    for ax in axs:
+        for k in range(1, len(edges) - 1, 2):
+            ax.axvspan(edges[k], edges[k + 1], color="0.9", zorder=0)
+        if r["fell"]:
+            ax.axvline(r["fell_at_s"], color="k", ls="--", lw=1)
+        ax.grid(alpha=0.3)
+    axs[0].legend(fontsize=8)
+    axs[2].legend(fontsize=8)
+    end = f"fell at {r['fell_at_s']:.1f} s ({r['fell_in']})" if r["fell"] else "no fall"
+    axs[0].set_title(f"walk-run, {r['model']}: commands ramped up and back (shaded); {end}")
     return _save(fig, path)

@@ -11,6 +11,7 @@ touchdowns and computes the variability factors per IN and leg
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -42,7 +43,8 @@ class Record:
     Attributes:
       t: (T,) time [s]; out: (T, 2, K) IN outputs [stim]; gate: (T, 2, K) IN_SD gates;
       stance: (T, 2) bool; alive: (T,) bool; model: model name; vec: (28,) parameters;
-      duration: simulated time before a fall or the end [s]; fell: bool.
+      duration: simulated time before a fall or the end [s]; fell: bool; start: the
+      preset's own start entries (``v0`` [m/s], ``pose``) the rollout used, if it has them.
     """
 
     t: np.ndarray
@@ -54,17 +56,21 @@ class Record:
     vec: np.ndarray
     duration: float
     fell: bool
+    start: dict = dataclasses.field(default_factory=dict)
 
 
 def network_model_name(declared: str) -> str:
-    """The network model an FBL-table preset is recorded on: its own if it is a network,
-    else ``fbl_net``."""
+    """The network model a preset is recorded on: its own if it is a network, else the
+    reorganised law of its table (``fbl_net`` for FBL's, ``fblplus_net`` for FBL+'s)."""
     m = models.get_model(declared)
     if getattr(m.controller.settings, "network", None) is not None:
         return declared
-    if m.table.name != "fbl":
-        raise SpinalError(f"model {declared!r} is not on FBL's parameter table (no IN_SEN)")
-    return "fbl_net"
+    nets = {"fbl": "fbl_net", "fblplus": "fblplus_net"}
+    if m.table.name not in nets:
+        raise SpinalError(
+            f"model {declared!r} is not on FBL's or FBL+'s parameter table (no IN_SEN)"
+        )
+    return nets[m.table.name]
 
 
 @functools.lru_cache(maxsize=8)
@@ -91,14 +97,17 @@ def record(
 ) -> Record:
     """Simulate ``preset`` (name, path or results folder) on its network model and log the
     IN signals every ``log_dt`` [s] for ``duration`` [s] in environment ``env``."""
-    declared, vec, _ = load_preset(preset)
+    declared, vec, doc = load_preset(preset)
     name = network_model_name(declared)
-    cfg = SimConfig(duration=float(duration), log_dt=float(log_dt))
+    start = {k: doc[k] for k in ("v0", "pose") if k in doc}
+    cfg = SimConfig(duration=float(duration), log_dt=float(log_dt), **start)
     e = envs.make_env(env, jax.random.PRNGKey(int(seed)))
     model = models.get_model(name)
     (t, out, gate, stance, alive), dur, fell = _recorder(model, cfg)(model.table.as_jnp(vec), e)
     h = lambda x: np.asarray(x)
-    return Record(h(t), h(out), h(gate), h(stance), h(alive), name, vec, float(dur), bool(fell))
+    return Record(
+        h(t), h(out), h(gate), h(stance), h(alive), name, vec, float(dur), bool(fell), start
+    )
 
 
 @dataclass
