@@ -344,13 +344,32 @@ def test_spinal_cli_errors_are_clear(capsys):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["fblminus_walk", "3fbl_walk", "3fbl_prime_walk"])
+def test_reorganised_fblplus_walks_like_fblplus():
+    # exp5's fast walk, whose FBL+ rules are active, on FBL+ and on its network
+    _, vec, doc = presets.load_preset("fblplus_fastwalk")
+    cfg = sim.SimConfig(duration=1.2, v0=doc["v0"])
+    env = envs.make_env("flat", jax.random.PRNGKey(0))
+    runs = [
+        sim.make_rollout(models.get_model(m), cfg, batched=False)(jnp.asarray(vec), env)
+        for m in ("fblplus", "fblplus_net")
+    ]
+    (tr_p, _, _, _), (tr_n, _, sm_n, _) = runs
+    np.testing.assert_allclose(np.asarray(tr_n.stim), np.asarray(tr_p.stim), atol=2e-3)
+    np.testing.assert_allclose(np.asarray(tr_n.qpos), np.asarray(tr_p.qpos), atol=2e-3)
+    assert not bool(sm_n.fell)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name", ["fblminus_walk", "3fbl_walk", "3fbl_prime_walk", "plus_3fbl_walk"]
+)
 def test_shipped_spinal_models_walk(name):
     from jaxgait import evaluate
 
     rep = evaluate.run(name, duration=20.0).report
     assert not rep["fell"] and rep["distance_m"] > 20.0
-    assert rep["model"] == name and models.get_spec(name).table.name == "fbl"
+    table = "fblplus" if name.startswith("plus_") else "fbl"  # built from an FBL+ gait
+    assert rep["model"] == name and models.get_spec(name).table.name == table
 
 
 @pytest.mark.slow

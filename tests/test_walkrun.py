@@ -53,6 +53,10 @@ def test_window_measures_of_a_walk_then_a_run():
     # a fall at 3 s blanks the window that ends after it
     w = window_gait(t, x, stance, td, window_s=2.0, fell_at=3.0)
     assert np.isfinite(w["speed_mps"][0]) and np.isnan(w["speed_mps"][1])
+    # a trace cut by a fall still gives every window of the requested duration
+    w = window_gait(t[:2500], x[:2500], stance[:2500], td, 1.0, fell_at=2.5, duration=4.0)
+    assert w["t_end_s"].tolist() == [1.0, 2.0, 3.0, 4.0]
+    assert np.isfinite(w["speed_mps"][:2]).all() and np.isnan(w["speed_mps"][2:]).all()
 
 
 @pytest.mark.slow

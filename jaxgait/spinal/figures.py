@@ -301,7 +301,7 @@ def plot_walkrun(path, r: dict) -> Path:
     """A walk-run rollout (:mod:`jaxgait.spinal.walkrun`): the driven commands, the speed and
     the double-stance and flight fractions per window over time, the phases shaded."""
     w = r["windows"]
-    t = np.asarray(w["t_end_s"]) - 0.5 * (w["t_end_s"][1] - w["t_end_s"][0])
+    t = np.asarray(w["t_end_s"]) - 0.5 * r["window_s"]
     fig = Figure(figsize=(9, 6), layout="constrained")
     axs = fig.subplots(3, 1, sharex=True)
     for name, vals in w["commands"].items():

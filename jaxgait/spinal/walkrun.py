@@ -80,12 +80,16 @@ def walkrun_schedule(commands, wr: WalkRun):
     return schedule(commands, wr.knots(), interp="linear")
 
 
-def window_gait(t, com_x, stance, td_t, window_s: float, fell_at: float = np.inf) -> dict:
-    """Per window [k window_s, (k+1) window_s]: speed [m/s], double-stance and flight
-    fractions [-] and the cycle frequency [Hz] from the right touchdowns ``td_t`` [s]; NaN
-    for windows that end after ``fell_at`` [s].  t (T,), com_x (T,), stance (T, 2) bool."""
+def window_gait(
+    t, com_x, stance, td_t, window_s: float, fell_at: float = np.inf, duration=None
+) -> dict:
+    """Per window [k window_s, (k+1) window_s] up to ``duration`` [s] (default the last
+    time): speed [m/s], double-stance and flight fractions [-] and the cycle frequency [Hz]
+    from the right touchdowns ``td_t`` [s]; NaN for windows that end after ``fell_at`` [s].
+    t (T,), com_x (T,), stance (T, 2) bool."""
     t, com_x, stance = np.asarray(t, float), np.asarray(com_x, float), np.asarray(stance, bool)
-    n = int(np.floor(t[-1] / window_s + 1e-9)) if t.size else 0
+    end = (t[-1] if t.size else 0.0) if duration is None else float(duration)
+    n = int(np.floor(end / window_s + 1e-9))
     keys = ("speed_mps", "double_stance_fraction", "flight_fraction", "cycle_frequency_hz")
     out = {k: np.full(n, np.nan) for k in keys}
     out["t_end_s"] = (np.arange(n) + 1) * window_s
@@ -124,7 +128,9 @@ def run_walkrun(preset, wr: WalkRun, env: str = "flat", seed: int = 0) -> dict:
     fell_at = float(np.asarray(summary.duration)) if fell else np.inf
     n_ev = min(int(events.n), events.t.shape[0])
     td = events.t[:n_ev][events.leg[:n_ev] == 0]
-    win = window_gait(trace.t, trace.com[:, 0], trace.stance, td, wr.window_s, fell_at)
+    win = window_gait(
+        trace.t, trace.com[:, 0], trace.stance, td, wr.window_s, fell_at, wr.duration
+    )
     tk = [k[0] for k in wr.knots()]
     cmd = {
         c: np.interp(win["t_end_s"], tk, [k[1][c] for k in wr.knots()]).tolist() for c in wr.drive
@@ -142,6 +148,7 @@ def run_walkrun(preset, wr: WalkRun, env: str = "flat", seed: int = 0) -> dict:
             "ramp down": wr.back_s,
             "walk again": wr.end_s,
         },
+        "window_s": wr.window_s,
         "fell": fell,
         "fell_at_s": fell_at if fell else None,
         "fell_in": wr.phase_of(fell_at) if fell else None,
@@ -149,9 +156,5 @@ def run_walkrun(preset, wr: WalkRun, env: str = "flat", seed: int = 0) -> dict:
             **{k: v.tolist() for k, v in win.items()},
             "phase": [wr.phase_of(t - 1e-9) for t in win["t_end_s"]],
             "commands": cmd,
-        },
-        "trace": {
-            "t": trace.t.tolist(),
-            "com_x": trace.com[:, 0].tolist(),
         },
     }
