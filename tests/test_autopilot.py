@@ -67,15 +67,19 @@ def test_grade_estimate_from_the_feet_at_touchdown():
     # the slope rule adds k_sw g to omega and k_sb g to O_INBAS (no speed error here)
     cmds = _inner_commands()
     p = dict(zip(AUTO_SPEED.names, map(float, AUTO_SPEED.init), strict=True))
-    p.update(k_sw=-2.0, k_sb=0.5, k_sc=0.25, k_lean_g=0.4, k_ff=0.0, k_p=0.0, k_i=0.0)
+    p.update(k_sw=-2.0, k_sb=0.5, k_sc=0.25, k_lean_g=0.4, k_os_g=0.3, k_as_g=2.0)
+    p.update(k_ff=0.0, k_p=0.0, k_i=0.0)
     sched = {c.name: jnp.asarray(c.default) for c in cmds}
     out = speed_commands(p, 1.3, 1.3, 0.0, sched, cmds, g)
     assert float(out["omega"]) == pytest.approx(float(sched["omega"]) - 2.0 * g, abs=1e-6)
     assert float(out["O_INBAS"]) == pytest.approx(0.5 * g, abs=1e-6)
     assert float(out["O_INCPG"]) == pytest.approx(0.25 * g, abs=1e-6)
     assert float(out["lean_offset"]) == pytest.approx(0.4 * g, abs=1e-6)
+    assert float(out["O_INSEN"]) == pytest.approx(0.3 * g, abs=1e-6)
+    assert float(out["A_INSEN"]) == pytest.approx(1.0 + 2.0 * g, abs=1e-6)
     # the feedforward gains move their command by k (v* - v_ref), nothing else
-    p.update(k_sw=0.0, k_sb=0.0, k_sc=0.0, k_lean_g=0.0, k_a_bas=0.5, k_lean_v=-0.1, v_ref=1.2)
+    p.update(k_sw=0.0, k_sb=0.0, k_sc=0.0, k_lean_g=0.0, k_os_g=0.0, k_as_g=0.0)
+    p.update(k_a_bas=0.5, k_lean_v=-0.1, v_ref=1.2)
     out = speed_commands(p, 1.4, 1.4, 0.0, sched, cmds, 0.0)
     ff = {"A_INBAS": 0.5 * 0.2, "lean_offset": -0.1 * 0.2}
     for c in cmds:

@@ -18,6 +18,8 @@ wraps a network controller, takes the target speed v* [m/s] as its command and e
    O_INCPG = O_sched + k_o_cpg (v* - v_ref) + k_sc g                [stim],
    omega   = omega_sched + k_w (v* - v_ref) + k_sw g                [cycles/s],
    lean    = lean_sched + k_lean_v (v* - v_ref) + k_lean_g g          [rad],
+   O_INSEN = O_sched + k_o_sen (v* - v_ref) + k_os_g g              [stim],
+   A_INSEN = A_sched + k_a_sen (v* - v_ref) + k_as_g g              [-],
    and every other command c of the network c = c_sched + k_c (v* - v_ref) (the feedforward
    gains ``k_a_sen``, ``k_o_sen``, ``k_a_cpg``, ``k_a_bas``; 0 by default: a direction in C
    along which the speed changes), each clipped to the range the network declares
@@ -58,7 +60,12 @@ FEEDFORWARD = {
     "lean_offset": "k_lean_v",
 }
 #: the slope rule's gains on the commands other than O_INBAS and omega (per unit grade)
-SLOPE_RULE = {"O_INCPG": "k_sc", "lean_offset": "k_lean_g"}
+SLOPE_RULE = {
+    "O_INCPG": "k_sc",
+    "lean_offset": "k_lean_g",
+    "O_INSEN": "k_os_g",
+    "A_INSEN": "k_as_g",
+}
 
 #: Gains of the speed law (see the module docstring).
 AUTO_SPEED = ParamTable(
@@ -84,6 +91,8 @@ AUTO_SPEED = ParamTable(
         ParamSpec("k_a_bas", 0.0, -2.0, 2.0, _FF + "A_INBAS", "1/(m/s)"),
         ParamSpec("k_lean_v", 0.0, -0.5, 0.5, _FF + "lean_offset", "rad/(m/s)"),
         ParamSpec("k_lean_g", 0.0, -1.0, 1.0, "slope rule: lean_offset per unit grade", "rad"),
+        ParamSpec("k_os_g", 0.0, -1.0, 1.0, "slope rule: O_INSEN per unit grade", "stim"),
+        ParamSpec("k_as_g", 0.0, -5.0, 5.0, "slope rule: A_INSEN per unit grade"),
     ),
 )
 
