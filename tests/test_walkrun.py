@@ -69,6 +69,7 @@ def test_walkrun_command_runs_at_a_tiny_size(tmp_path, capsys):
     r = json.loads((out / "walkrun_3fbl_walk.json").read_text())
     assert r["drive"] == {"A_INBAS": [1.0, 1.3]} and len(r["windows"]["speed_mps"]) == 8
     assert r["windows"]["commands"]["A_INBAS"][3] == pytest.approx(1.3)  # end of the hold
+    assert 1.0 < r["distance_m"] < 8.0 and not r["fell"]  # 4 s of walking
     assert (out / "walkrun_3fbl_walk.png").stat().st_size > 0
     assert main(["walkrun", "3fbl_walk", "--drive", "A_INBAS"]) == 2
     assert "NAME=WALK:RUN" in capsys.readouterr().err

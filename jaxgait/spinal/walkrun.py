@@ -9,7 +9,9 @@ linearly to their running values over ``ramp_s``, holds them ``hold_s``, ramps b
 ``back_s`` and walks ``end_s`` more.  The gait is measured in consecutive windows of
 ``window_s`` seconds (:func:`window_gait`): mean speed [m/s], the fractions of time in double
 stance and in flight (neither leg in stance) [-], the right leg's cycle frequency [Hz], and
-the commands at the window's end.  A fall blanks the windows after it.
+the commands at the window's end.  A fall blanks the windows after it.  The same ramps on
+another environment are the thesis's manual control (7.3.1): e.g. ``--env increasing_slope``
+with a ramp up and a hold raises a command as the grade rises.
 """
 
 from __future__ import annotations
@@ -147,6 +149,7 @@ def run_walkrun(preset, wr: WalkRun, env: str = "flat", seed: int = 0) -> dict:
             "walk again": wr.end_s,
         },
         "window_s": wr.window_s,
+        "distance_m": float(trace.com[-1, 0] - trace.com[0, 0]),
         "fell": fell,
         "fell_at_s": fell_at if fell else None,
         "fell_in": wr.phase_of(fell_at) if fell else None,
