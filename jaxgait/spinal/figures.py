@@ -323,5 +323,5 @@ def plot_walkrun(path, r: dict) -> Path:
     axs[0].legend(fontsize=8)
     axs[2].legend(fontsize=8)
     end = f"fell at {r['fell_at_s']:.1f} s ({r['fell_in']})" if r["fell"] else "no fall"
-    axs[0].set_title(f"walk-run, {r['model']}: commands ramped up and back (shaded); {end}")
+    axs[0].set_title(f"{r['model']} on {r['env']}: driven commands, ramps shaded; {end}")
     return _save(fig, path)
