@@ -34,9 +34,9 @@ def test_fbl_walk_walks_20s_on_flat_ground(fbl_walk):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["exp3_walk", "exp7a_walk"])
+@pytest.mark.parametrize("name", ["exp1_walk", "exp3_walk", "exp7a_walk"])
 def test_full_size_reproduction_presets_walk_20s_on_flat_ground(name):
-    """The best gaits of the full-size exp3 and exp7a runs, shipped as presets, walk on flat
+    """The best gaits of the full-size exp1, exp3 and exp7a runs, shipped as presets, walk on flat
     ground near the thesis's 1.3 m/s (experiments/full/README.md: 60 s each)."""
     model, vec, doc = load_preset(name)
     assert model == "fbl" and doc["experiment"] == name.removesuffix("_walk")
