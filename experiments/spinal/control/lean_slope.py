@@ -1,5 +1,6 @@
-"""3fbl_auto on the increasing slope with the slope rule on the trunk lean (k_lean_g) and the
-speed feedforward on it (k_lean_v) set by hand; prints distance and fall per setting.
+"""3fbl_auto before its slope training (control/3fbl_auto_flat.json) on the increasing slope,
+with the lean slope rule (k_lean_g) and lean feedforward (k_lean_v) set by hand; prints the
+distance and the fall per setting.
 
     ./jg python experiments/spinal/control/lean_slope.py 0,0.5,1.0,-0.5 0
 """
@@ -10,7 +11,7 @@ import sys
 
 from jaxgait import evaluation
 
-doc = json.load(open("experiments/presets/3fbl_auto.json"))
+doc = json.load(open("experiments/spinal/control/3fbl_auto_flat.json"))  # before the slope rule
 for kg in map(float, sys.argv[1].split(",")):
     for kv in map(float, sys.argv[2].split(",")):
         q = copy.deepcopy(doc)
