@@ -121,7 +121,7 @@ def test_every_registered_model_builds_rolls_out_and_is_listed(name, capsys):
 
 
 def test_unknown_model_lists_the_registered_ones():
-    with pytest.raises(KeyError, match="registered: fbl, fblplus, fbl_net, taga"):
+    with pytest.raises(KeyError, match="registered: fbl, fblplus, fbl_net, fblplus_net, taga"):
         models.get_model("fbl_minus_typo")
 
 
