@@ -51,8 +51,12 @@ def mixed(fbl_model):
 
 @pytest.mark.parametrize(
     "lanes, drain",
-    [(2, ()), (8, ()), (3, (2, 1))],
-    ids=["queue_longer", "queue_shorter", "drained_to_2_then_1"],
+    [
+        pytest.param(2, (), id="queue_longer"),
+        pytest.param(8, (), id="queue_shorter"),
+        # the drained tail compiles three programs: in the slow lane (.ci/run runs it)
+        pytest.param(3, (2, 1), id="drained_to_2_then_1", marks=pytest.mark.slow),
+    ],
 )
 def test_scheduled_equals_direct_per_candidate(fbl_model, mixed, lanes, drain):
     params, env, ref = mixed
@@ -85,6 +89,7 @@ def test_utilisation_of_a_hand_made_queue(fbl_model, mixed):
     np.testing.assert_allclose(np.asarray(res["duration"]), 1.0, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_drained_tail_runs_on_fewer_lanes(fbl_model):
     """The hand-made queue with a drain to one lane: after 8 chunks the queue is empty and
     only rollout 4 is active, so its last 4 chunks run on one lane: 20 busy lane-chunks of
