@@ -198,6 +198,15 @@ def swing_end_pd(p: dict, s: jax.Array) -> jax.Array:
     return add.at[:, HFL].set(u_hfl).at[:, GLU].set(u_glu).at[:, VAS].set(u_vas)
 
 
+def with_stance_end(p: dict, s: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """FBL+'s phases on sensors s (rows, N_SENSORS): ``(s with the double-support flag set
+    where a leg is in stance end, swing_end (rows,) bool)``, so that FBL's stance-end rules
+    apply there (:func:`phases_plus`)."""
+    stance_end, swing_end = phases_plus(p, s)
+    ds = jnp.where(stance_end & (s[:, S_DS] <= 0.5), jnp.ones_like(s[:, S_DS]), s[:, S_DS])
+    return s.at[:, S_DS].set(ds), swing_end
+
+
 def fblplus_stimulation(p: dict, s: jax.Array) -> jax.Array:
     """FBL+ stimulation (2, 7) from one (delayed) sensor array s (2, N_SENSORS).
 
@@ -206,9 +215,8 @@ def fblplus_stimulation(p: dict, s: jax.Array) -> jax.Array:
     (thesis 2.1.3, Table 2.6).  Branchless; equal to FBL's law when the extra rules are off
     (see the module docstring).
     """
-    stance_end, swing_end = phases_plus(p, s)
-    ds = jnp.where(stance_end & (s[:, S_DS] <= 0.5), jnp.ones_like(s[:, S_DS]), s[:, S_DS])
-    stim = fbl_stimulation(p, s.at[:, S_DS].set(ds))
+    s_end, swing_end = with_stance_end(p, s)
+    stim = fbl_stimulation(p, s_end)
     return jnp.where(swing_end[:, None], stim + swing_end_pd(p, s), stim)
 
 

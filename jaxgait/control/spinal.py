@@ -43,13 +43,12 @@ from jaxgait.control.fbl import (
     FBL,
     MUSCLE_DELAY_GROUP,
     N_MUSCLES,
-    S_DS,
     ReflexSettings,
     delay_taps_for,
     packed_sensors,
     reflex_init,
 )
-from jaxgait.control.fblplus import FBLPLUS, phases_plus, swing_end_pd
+from jaxgait.control.fblplus import FBLPLUS, swing_end_pd, with_stance_end
 from jaxgait.control.interface import Controller, Sensors
 from jaxgait.control.interneurons import (
     IN_NAMES,
@@ -229,13 +228,11 @@ def _alpha(tau: float, dt: float) -> float:
 
 
 def _plus_rules(p, rows):
-    """FBL+'s phases on (rows, S) delayed sensors: the double-support flag replaced by the
-    stance-end mask (as :func:`jaxgait.control.fblplus.fblplus_stimulation`) and the
-    swing-end PD additions (rows, 7), zero outside swing end."""
-    stance_end, swing_end = phases_plus(p, rows)
-    ds = jnp.where(stance_end & (rows[:, S_DS] <= 0.5), 1.0, rows[:, S_DS]).astype(rows.dtype)
-    add = jnp.where(swing_end[:, None], swing_end_pd(p, rows), 0.0)
-    return rows.at[:, S_DS].set(ds), add
+    """FBL+'s phases on (rows, S) delayed sensors: the stance-end sensors
+    (:func:`jaxgait.control.fblplus.with_stance_end`) and the swing-end PD additions
+    (rows, 7), zero outside swing end."""
+    ended, swing_end = with_stance_end(p, rows)
+    return ended, jnp.where(swing_end[:, None], swing_end_pd(p, rows), 0.0)
 
 
 def _delayed_inputs(p, delayed, plus: bool = False):

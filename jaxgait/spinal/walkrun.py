@@ -131,10 +131,9 @@ def run_walkrun(preset, wr: WalkRun, env: str = "flat", seed: int = 0) -> dict:
     n_ev = min(int(events.n), events.t.shape[0])
     td = events.t[:n_ev][events.leg[:n_ev] == 0]
     win = window_gait(trace.t, trace.com[:, 0], trace.stance, td, wr.window_s, fell_at, wr.duration)
-    tk = [k[0] for k in wr.knots()]
-    cmd = {
-        c: np.interp(win["t_end_s"], tk, [k[1][c] for k in wr.knots()]).tolist() for c in wr.drive
-    }
+    knots = wr.knots()
+    tk = [t for t, _ in knots]
+    cmd = {c: np.interp(win["t_end_s"], tk, [v[c] for _, v in knots]).tolist() for c in wr.drive}
     return {
         "preset": str(preset),
         "model": name,
