@@ -3,8 +3,9 @@
 Command line::
 
     python -m jaxgait.evaluate PRESET_OR_FILE [--model fbl|fblplus|taga]
-        [--env flat|slope_up|slope_down|push|random_push|wavy|increasing_slope]
-        [--env-seed N] [--duration S] [--json] [--save-trajectory PATH] [--plots DIR]
+        [--env flat|slope_up|slope_down|push|random_push|wavy|increasing_slope|weight_support]
+        [--env-set FIELD=VALUE ...] [--env-seed N] [--duration S] [--json]
+        [--save-trajectory PATH] [--plots DIR]
         [--save-scene PATH] [--video PATH.mp4|PATH.gif] [--video-backend auto|mujoco|matplotlib]
         [--video-fps N]
 
@@ -59,6 +60,7 @@ from jaxgait.evaluation import (  # noqa: F401 - the Python API, re-exported
     _evaluate_taga,
     _load,
     _taga_env,
+    env_config,
     evaluate,
     run,
     taga_report,
@@ -73,6 +75,7 @@ ENV_CHOICES = (
     "random_push",
     "wavy",
     "increasing_slope",
+    "weight_support",
 )
 #: Ground shown by ``--save-scene`` behind the start and ahead of the end of the walk [m].
 _SCENE_BEHIND, _SCENE_AHEAD = 3.0, 5.0
@@ -123,6 +126,14 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--env", default="flat", help=f"environment: {', '.join(ENV_CHOICES)}")
     p.add_argument("--env-seed", type=int, default=0, help="environment PRNG seed (default 0)")
+    p.add_argument(
+        "--env-set",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="replace a field of the environment's config, e.g. --env weight_support "
+        "--env-set fraction=0.2 (repeatable; values are read as JSON numbers)",
+    )
     p.add_argument(
         "--duration",
         type=float,
@@ -275,6 +286,21 @@ def main(argv=None) -> int:
     return code
 
 
+def _env_sets(items: list[str]) -> dict:
+    """``--env-set FIELD=VALUE`` options as a dict (VALUE a JSON number, bool or string)."""
+    out = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            raise EvaluateError(f"--env-set {item!r}: expected FIELD=VALUE, e.g. fraction=0.2")
+        try:
+            value = json.loads(raw)
+        except json.JSONDecodeError:
+            value = raw
+        out[key.strip()] = value
+    return out
+
+
 def _main(a: argparse.Namespace) -> tuple[int, str | None]:
     def err(msg):
         print(f"jaxgait.evaluate: error: {msg}", file=sys.stderr)
@@ -282,6 +308,8 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
 
     try:
         _check_inputs(a.env, a.duration, a.env_seed)
+        env_overrides = _env_sets(a.env_set)
+        env_config(a.env, env_overrides)
         declared, _, doc, label, file = _load(a.preset)
         name = _choose_model(a.model, declared, label)
         if name == "taga" and (a.save_trajectory or a.plots or a.save_scene):
@@ -321,6 +349,7 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
                 v0=a.v0,
                 reference=a.reference,
                 log_dt=a.log_dt,
+                env_overrides=env_overrides,
             )
             rep = result.report
             if a.video is not None:

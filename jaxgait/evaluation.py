@@ -105,6 +105,23 @@ def _check_inputs(env: str, duration: float, seed: int) -> None:
         raise EvaluateError(f"environment seed must be a non-negative integer, got {seed!r}")
 
 
+def env_config(env: str, overrides: dict | None = None):
+    """The config of environment ``env`` with ``overrides`` (field -> value) applied.
+
+    Raises:
+      EvaluateError: unknown environment, unknown field or invalid value (the message lists
+        the valid fields).
+    """
+    from jaxgait.world.envs import get_env_config
+
+    if overrides is not None and not isinstance(overrides, dict):
+        raise EvaluateError(f"environment overrides must be a dict of fields, got {overrides!r}")
+    try:
+        return get_env_config(env, **(overrides or {}))
+    except (TypeError, ValueError) as e:
+        raise EvaluateError(f"environment {env!r}: {e}") from None
+
+
 def _choose_model(requested: str | None, declared: str, label: str) -> str:
     """The model to run: ``requested`` if given (must agree with the preset), else declared."""
     for name in (requested, declared):
@@ -167,6 +184,7 @@ def run(
     v0: float | None = None,
     reference: str = "walking",
     log_dt: float | None = None,
+    env_overrides: dict | None = None,
 ) -> EvalRun:
     """Simulate an FBL-family preset once and measure it.
 
@@ -185,6 +203,8 @@ def run(
       log_dt: interval of the logged trajectory [s], a whole multiple of the physics step
         (default :attr:`jaxgait.sim.SimConfig.log_dt`, 10 ms); the per-stance GRF peaks are
         measured at the physics step whatever it is.
+      env_overrides: fields of the environment's config to replace (e.g. ``{"fraction":
+        0.2}`` for ``weight_support``); reported under ``env_overrides``.
 
     Returns:
       An :class:`EvalRun` (report, measures, trace, events, summary, final state...).
@@ -223,13 +243,16 @@ def run(
             f"available: {', '.join(sorted(sim.POSES))}"
         )
     cfg = sim.SimConfig(duration=float(duration), v0=float(v0), pose=pose, **cfg_kw)
-    environment = envs.make_env(env, jax.random.PRNGKey(int(seed)))
+    env_cfg = env_config(env, env_overrides)
+    environment = envs.make_env(env_cfg, jax.random.PRNGKey(int(seed)))
     params = mdl.table.as_jnp(vec)
     trace, events, summary, final = _jit_rollout(name, cfg)(params, environment)
     meas = compute_measures(trace, events, summary, reference=ref)
     to_np = lambda tree: jax.tree.map(np.asarray, tree)
     meas, trace, events, summary = to_np(meas), to_np(trace), to_np(events), to_np(summary)
     rep = _report(meas, label=label, file=file, model=name, env=env, seed=seed, duration=duration)
+    if env_overrides:
+        rep["env_overrides"] = dict(env_overrides)
     return EvalRun(rep, meas, trace, events, summary, final, mdl, vec, doc, environment, cfg)
 
 

@@ -202,3 +202,30 @@ def test_f_and_gamma_samplers():
     assert stats.kstest(g, stats.gamma(3).cdf).pvalue > 1e-3
     with pytest.raises(ValueError, match="df1"):
         E.sample_f(jax.random.key(0), 5.5, 12, (3,))
+
+
+def test_weight_support_carries_its_share_of_the_body_weight():
+    """``weight_support``: one constant upward force fraction * m * g on the trunk, from
+    t = 0 to past any rollout; the same pushes as ``push`` configured as a harness."""
+    cfg = E.get_env_config("weight_support", fraction=0.25)
+    env = E.make_env(cfg, jax.random.key(3))
+    for t in (0.0, 7.3, 1000.0):
+        fx, fz, h = push_force(env.pushes, t)
+        assert float(fx) == pytest.approx(0.0, abs=1e-3)
+        assert float(fz) == pytest.approx(0.25 * 80.0 * 9.81, rel=1e-6)  # 196.2 N
+        assert float(h) == pytest.approx(0.3)
+    assert float(jnp.count_nonzero(env.pushes.magnitude)) == 1
+    harness = E.get_env_config(
+        "push", magnitude=196.2, angle=math.pi / 2, t_min=0.0, t_max=0.0, duration=1e6, height=0.3
+    )
+    a, b = E.make_env(harness, jax.random.key(0)).pushes, env.pushes
+    for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True):
+        np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=1e-6, atol=1e-6)
+    assert float(E.make_env("weight_support", jax.random.key(0)).pushes.magnitude[0]) == (
+        pytest.approx(0.3 * 80.0 * 9.81)
+    )
+    for bad in (1.0, -0.1):
+        with pytest.raises(ValueError, match="fraction"):
+            E.get_env_config("weight_support", fraction=bad)
+    with pytest.raises(ValueError, match="mass"):
+        E.get_env_config("weight_support", mass=0.0)

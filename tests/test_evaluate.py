@@ -254,6 +254,9 @@ def test_main_bad_inputs(tmp_path, capsys):
         ([str(good), "--save-trajectory", str(tmp_path / "nodir" / "t.csv")], "nodir"),
         ([str(good), "--save-scene", str(tmp_path / "nodir" / "s.xml")], "--save-scene"),
         ([str(good), "--save-scene", str(tmp_path)], "is a folder"),
+        ([str(good), "--env", "weight_support", "--env-set", "fractio=0.2"], "valid fields"),
+        ([str(good), "--env", "weight_support", "--env-set", "fraction=1.5"], "fraction"),
+        ([str(good), "--env", "weight_support", "--env-set", "fraction"], "FIELD=VALUE"),
     ]
     for argv, needle in cases:
         assert ev.main(argv) == 2, argv
@@ -321,6 +324,23 @@ def e2e(tmp_path_factory):
     with contextlib.redirect_stdout(out):
         code = ev.main(argv)
     return code, out.getvalue(), d
+
+
+def test_env_set_reaches_the_environment(e2e, capsys):
+    """``--env weight_support --env-set fraction=0.5``: the report names the overrides, and
+    the harness carries weight: the supported body presses on the ground less over 0.3 s."""
+    _, text, d = e2e
+    preset = str(d / "init.json")
+    argv = [preset, "--json", "--duration", "0.3", "--env", "weight_support"]
+    assert ev.main([*argv, "--env-set", "fraction=0.5"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["env"] == "weight_support" and rep["env_overrides"] == {"fraction": 0.5}
+    assert "env_overrides" not in json.loads(text)
+    grf_z = {}
+    for f in (0.0, 0.5):
+        r = ev.run(preset, env="weight_support", duration=0.3, env_overrides={"fraction": f})
+        grf_z[f] = float(np.asarray(r.trace.grf)[..., 1].sum(-1).mean())
+    assert grf_z[0.5] < 0.8 * grf_z[0.0]
 
 
 def test_end_to_end_json(e2e):

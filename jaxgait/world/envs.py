@@ -16,6 +16,7 @@ Registry (:data:`ENVIRONMENTS`, thesis numbering in brackets):
 ``random_push``        a series of random pushes, growing amplitude [3] (2.2.4.1, Fig. 2.7)
 ``wavy``               trapezoids of increasing angle, random lengths [4] (2.2.4.2, Fig. 2.8)
 ``increasing_slope``   grade rising from 0 to 30 % over 160 m [5] (7.3.1, Fig. 7.5)
+``weight_support``     level ground, a share of the body weight carried by a harness
 =====================  ==================================================================
 
 The same key always gives the same environment, so every evaluation can be replayed.
@@ -49,6 +50,12 @@ from jaxgait.world.terrain import (
     slope,
     wavy,
 )
+
+G = 9.81
+"""Gravitational acceleration [m/s^2] (the MJCF's)."""
+
+SUPPORT_DURATION_S = 1.0e6
+"""How long the support of ``weight_support`` acts [s]: longer than any rollout."""
 
 DEFAULT_N_PUSHES = 128
 """Default push capacity P: 128 random pushes last ~160 s on average (1.25 s per push+pause),
@@ -273,6 +280,49 @@ class PushEnv(EnvConfig):
 
 
 @dataclass(frozen=True)
+class WeightSupportEnv(EnvConfig):
+    """Level ground with body-weight support: a harness pulls the trunk straight up.
+
+    A constant vertical force ``fraction * mass * g`` [N] on the trunk at ``height`` [m from
+    the hip along the trunk axis], from t = 0 to the end of the rollout, in push slot 0 (the
+    push convention above, angle +pi/2).  This is the body-weight-supported treadmill of gait
+    rehabilitation, here a training aid: a search can start under support, where flight is
+    cheap, and lower the support stage by stage (``experiments/running``).  Not a thesis
+    environment.
+
+    Attributes:
+      fraction: share of the body weight carried, in [0, 1).
+      mass: body mass [kg] the share is taken of (the planar body's 80 kg).
+      height: point of application [m from the hip]; 0.3 m is near the trunk's centre of mass.
+    """
+
+    fraction: float = 0.3
+    mass: float = 80.0
+    height: float = 0.3
+
+    def __post_init__(self):
+        super().__post_init__()
+        _check(0.0 <= self.fraction < 1.0, "fraction", self.fraction, "in [0, 1)")
+        _check(self.mass > 0, "mass", self.mass, "> 0 [kg]")
+
+    @property
+    def force(self) -> float:
+        """The support force [N]."""
+        return self.fraction * self.mass * G
+
+    def make_pushes(self, key):
+        del key
+        p = Pushes.empty(self.n_pushes)
+        return p.replace(
+            t0=p.t0.at[0].set(0.0),
+            duration=p.duration.at[0].set(SUPPORT_DURATION_S),
+            magnitude=p.magnitude.at[0].set(self.force),
+            angle=p.angle.at[0].set(math.pi / 2),
+            height=p.height.at[0].set(self.height),
+        )
+
+
+@dataclass(frozen=True)
 class RandomPushEnv(EnvConfig):
     """Environment 3: random pushes on flat ground (thesis 2.2.4.1, Fig. 2.7).
 
@@ -392,6 +442,7 @@ ENVIRONMENTS: dict[str, EnvConfig] = {
     "random_push": RandomPushEnv(),
     "wavy": WavyEnv(),
     "increasing_slope": IncreasingSlopeEnv(),
+    "weight_support": WeightSupportEnv(),
 }
 """Default config of every named environment (thesis 2.2.4)."""
 
