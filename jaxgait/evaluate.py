@@ -62,6 +62,7 @@ from jaxgait.evaluation import (  # noqa: F401 - the Python API, re-exported
     _taga_env,
     env_config,
     evaluate,
+    reference_kinematics,
     run,
     taga_report,
 )
@@ -387,6 +388,7 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
                     result.model,
                     terrain=result.env.terrain,
                     measures_dict=result.measures,
+                    reference=reference_kinematics(a.reference),
                 )
                 rep["plot_files"] = {k: str(v) for k, v in paths.items()}
             if a.save_scene is not None:

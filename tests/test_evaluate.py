@@ -451,3 +451,25 @@ def test_a_preset_starts_in_its_own_pose_and_an_unknown_pose_is_refused():
     assert np.isclose(q0, knee_sw, atol=0.02).any()  # Geyer's start has no joint near 100 deg
     with pytest.raises(evaluation.EvaluateError, match="unknown start pose 'crouch'"):
         evaluation.run({**d, "pose": "crouch"}, duration=0.01)
+
+
+def test_plots_draw_the_reference_the_correlations_use(e2e, tmp_path, monkeypatch, capsys):
+    """``--reference running --plots``: the joint-angle figure draws Fukuchi's running curves,
+    the ones its title's correlations were computed against."""
+    from jaxgait.analysis import plots, refdata
+
+    seen = {}
+    real = plots.plot_joint_angles
+
+    def spy(*args, **kw):
+        seen["reference"] = kw.get("reference")
+        return real(*args, **kw)
+
+    monkeypatch.setattr(plots, "plot_joint_angles", spy)
+    _, _, d = e2e
+    argv = [str(d / "init.json"), "--json", "--duration", "0.3", "--plots", str(tmp_path)]
+    assert ev.main([*argv, "--reference", "running"]) == 0
+    capsys.readouterr()
+    running = refdata.running_kinematics()
+    np.testing.assert_array_equal(seen["reference"].mean_deg, running.mean_deg)
+    assert (tmp_path / "joint_angles.png").is_file()

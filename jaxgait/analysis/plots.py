@@ -517,6 +517,7 @@ def plot_all(
     terrain=None,
     measures_dict: dict | None = None,
     n_cycles: int = 5,
+    reference: refdata.Kinematics | None = None,
 ) -> dict[str, Path]:
     """Write ``joint_angles.png``, ``grf.png``, ``activations.png`` and ``stick_figure.png``.
 
@@ -529,6 +530,8 @@ def plot_all(
       measures_dict: output of :func:`~jaxgait.analysis.measures.compute_measures`
         (correlations in the joint-angle title); computed if None.
       n_cycles: number of last cycles averaged in the cycle figures.
+      reference: human joint angles drawn in ``joint_angles.png`` (default Winter's walking);
+        pass the reference ``measures_dict``'s correlations were computed against.
 
     Returns:
       Figure name -> path written.
@@ -539,7 +542,12 @@ def plot_all(
     names = tuple(getattr(getattr(model, "muscles", None), "names", MUSCLES))
     return {
         "joint_angles": plot_joint_angles(
-            out / "joint_angles.png", trace, events, n_cycles=n_cycles, correlations=measures_dict
+            out / "joint_angles.png",
+            trace,
+            events,
+            n_cycles=n_cycles,
+            correlations=measures_dict,
+            reference=reference,
         ),
         "grf": plot_grf(out / "grf.png", trace, events, mass, n_cycles=n_cycles),
         "activations": plot_activations(
