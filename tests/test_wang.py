@@ -497,3 +497,18 @@ def test_the_push_tolerant_walker_survives_wangs_push_where_nwalk_falls():
         fell[name] = np.asarray(s.fell).tolist()
     assert fell["wang_push_walk_1p25"] == [False, False], fell
     assert any(fell["wang_walk_1p25"]), fell
+
+
+@pytest.mark.slow
+def test_every_shipped_wang_runner_has_flight_and_no_double_stance():
+    """A ``wang_run_*`` preset runs: over 20 s on flat ground it spends time with neither foot
+    on the ground and (next to) none with both."""
+    from jaxgait import evaluation
+
+    runners = [n for n in _wang_gaits() if n.startswith("wang_run_")]
+    assert runners, "no running preset ships"
+    for name in runners:
+        rep = evaluation.run(name, duration=20.0).report
+        assert not rep["fell"], name
+        assert rep["flight_fraction"] > 0.01, (name, rep["flight_fraction"])
+        assert rep["double_stance_fraction"] < 0.01, (name, rep["double_stance_fraction"])
