@@ -48,7 +48,7 @@ from jaxgait.analysis.video import (
     motion_from_trace,
     write_video,
 )
-from jaxgait.core.jsonio import json_safe
+from jaxgait.core.jsonio import json_safe, parse_assignment
 from jaxgait.evaluation import (  # noqa: F401 - the Python API, re-exported
     REFERENCES,
     TAGA_RENAMED,
@@ -288,17 +288,13 @@ def main(argv=None) -> int:
 
 
 def _env_sets(items: list[str]) -> dict:
-    """``--env-set FIELD=VALUE`` options as a dict (VALUE a JSON number, bool or string)."""
+    """``--env-set FIELD=VALUE`` options as a dict (VALUE as ``train --set`` reads it)."""
     out = {}
     for item in items:
-        key, sep, raw = item.partition("=")
-        if not sep or not key.strip():
+        parsed = parse_assignment(item)
+        if parsed is None:
             raise EvaluateError(f"--env-set {item!r}: expected FIELD=VALUE, e.g. fraction=0.2")
-        try:
-            value = json.loads(raw)
-        except json.JSONDecodeError:
-            value = raw
-        out[key.strip()] = value
+        out[parsed[0]] = parsed[1]
     return out
 
 

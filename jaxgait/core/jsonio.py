@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -29,3 +31,21 @@ def json_safe(x):
         v = float(a)
         return v if math.isfinite(v) else None
     return str(x)
+
+
+def parse_assignment(item: str) -> tuple[str, Any] | None:
+    """``"key=value"`` of a command-line option -> ``(key, value)``, None if malformed.
+
+    The value is JSON (``null``, ``true``, numbers, lists, strings in quotes); anything that
+    is not JSON is taken as a string; ``inf`` is infinity.  The key is stripped and non-empty.
+    """
+    key, sep, raw = item.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        return None
+    if raw.strip() in ("inf", "+inf", "Infinity"):
+        return key, math.inf
+    try:
+        return key, json.loads(raw)
+    except json.JSONDecodeError:
+        return key, raw

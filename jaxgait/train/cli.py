@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from jaxgait import models
+from jaxgait.core.jsonio import parse_assignment
 from jaxgait.presets import PresetError
 from jaxgait.train.checkpoint import CheckpointError
 from jaxgait.train.experiments import (
@@ -35,19 +33,12 @@ def parse_set(items: Sequence[str]) -> dict:
     """
     out: dict = {}
     for item in items:
-        if "=" not in item:
-            raise ExperimentError(f"--set {item!r}: expected key=value")
-        key, raw = item.split("=", 1)
-        key = key.strip()
-        if not key:
+        parsed = parse_assignment(item)
+        if parsed is None:
+            if "=" not in item:
+                raise ExperimentError(f"--set {item!r}: expected key=value")
             raise ExperimentError(f"--set {item!r}: empty key")
-        if raw.strip() in ("inf", "+inf", "Infinity"):
-            value: Any = math.inf
-        else:
-            try:
-                value = json.loads(raw)
-            except json.JSONDecodeError:
-                value = raw
+        key, value = parsed
         if "." in key:
             head, sub = key.split(".", 1)
             out.setdefault(head, {})
