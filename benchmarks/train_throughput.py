@@ -101,14 +101,17 @@ def compare_queue(name: str, particles: int | None, lane_counts, drains=None, ch
             ev = PopulationEvaluator(e)
         finally:
             evaluator_mod.drain_widths, evaluator_mod.QUEUE_CHUNK_S = own, own_chunk
+        times = []
         for _ in range(2):  # the first call compiles
             t = time.perf_counter()
             stage, value, _ = ev.scores(pop, keys)
-            secs = time.perf_counter() - t
+            times.append(time.perf_counter() - t)
+        first, secs = times
         st = ev.last_stats
         direct = stage if direct is None else direct
         print(
-            f"{label:52s} {secs:7.1f} s  utilisation {float(st.utilisation):.3f}  "
+            f"{label:52s} {secs:7.1f} s (first call {first:.1f} s)  "
+            f"utilisation {float(st.utilisation):.3f}  "
             f"busy {int(st.busy):,}  total {int(st.total):,} lane-steps  "
             f"{int(st.busy) / secs:,.0f} busy lane-steps/s  "
             f"stage differs from direct: {int((stage != direct).sum())} of {n}",
