@@ -130,3 +130,41 @@ def test_search_command_runs_at_a_tiny_size(tmp_path, capsys):
     speed = np.asarray(res["grid"]["speed_mps"], float)
     assert speed.shape == (1, 2) and np.all(np.isfinite(speed)) and np.all(speed > 0.5)
     assert (tmp_path / "search_A_INSEN_O_INSEN.png").is_file()
+
+
+def test_map_commands_follow_the_model_and_refuse_what_it_lacks():
+    from jaxgait.spinal.cli_control import map_commands
+
+    three = {"A_INSEN", "O_INSEN", "A_INBAS", "O_INBAS", "A_INCPG", "O_INCPG", "omega"}
+    assert map_commands(three) == ["O_INBAS", "O_INCPG", "A_INBAS", "A_INCPG"]
+    minus = {"A_INSEN", "O_INSEN", "A_INBAS", "O_INBAS", "lean_offset"}
+    assert map_commands(minus) == ["O_INBAS", "A_INBAS"]
+    assert map_commands({"A_INSEN", "O_INSEN", "lean_offset"}) == ["O_INSEN", "A_INSEN"]
+    assert map_commands(minus, "A_INSEN, O_INBAS") == ["A_INSEN", "O_INBAS"]
+    with pytest.raises(SpinalError, match="has no A_INCPG"):
+        map_commands(minus, "A_INBAS,A_INCPG")
+    with pytest.raises(SpinalError, match="not mappable"):
+        map_commands(minus, "A_INBAS,lean_offset")
+    with pytest.raises(SpinalError, match="two different"):
+        map_commands(minus, "A_INBAS,A_INBAS")
+
+
+def test_maps_of_a_model_without_a_cpg_have_no_omega_rows(tmp_path):
+    import json
+
+    from jaxgait.spinal.cli import main
+
+    args = ["maps", "fblminus_walk", "--n", "2", "--hold", "1.5", "--measure", "1"]
+    args += ["--warmup", "0", "--out", str(tmp_path)]
+    assert main(args) == 0
+    res = json.loads((tmp_path / "maps.json").read_text())
+    assert [(p["x"], p["y"]) for p in res["pairs"]] == [("O_INBAS", "A_INBAS")]
+    assert "z" not in res["pairs"][0] and "omega" not in res["ranges"]
+    pair = res["pairs"][0]
+    speed = np.asarray(pair["grid"]["speed_mps"], float)
+    assert speed.shape == (2, 2) and np.all(speed[np.isfinite(speed)] > 0.5)
+    # a blank cell is a column that fell; a column that did not fall has every setting
+    for row, fell in zip(speed, pair["fell"], strict=True):
+        assert fell or np.all(np.isfinite(row))
+    assert np.isfinite(speed).sum() >= 2
+    assert (tmp_path / "maps_speed_mps.png").is_file()

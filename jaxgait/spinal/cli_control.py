@@ -163,20 +163,54 @@ FIG_7_8 = {
 }
 
 
+#: the sensory group's commands, for maps of models without feedforward IN (FBL, FBL-);
+#: the same ranges as the basal group's in Fig. 7.8
+MAP_RANGES = {**FIG_7_8, "O_INSEN": (-0.01, 0.01), "A_INSEN": (0.7, 1.6)}
+
+
+def map_commands(have, requested: str | None = None) -> list[str]:
+    """The commands a map varies two by two: ``requested`` (comma separated, each in
+    :data:`MAP_RANGES` and in the model's control vector ``have``), else Fig. 7.8's four that
+    the model has, else (no IN_BAS, IN_CPG: FBL) the sensory group's pair."""
+    if requested:
+        names = [n.strip() for n in requested.split(",") if n.strip()]
+        bad = [n for n in names if n not in MAP_RANGES or n == "omega"]
+        if bad:
+            valid = ", ".join(n for n in MAP_RANGES if n != "omega")
+            raise SpinalError(f"--commands: {', '.join(bad)} not mappable; valid: {valid}")
+        missing = [n for n in names if n not in have]
+        if missing:
+            raise SpinalError(
+                f"--commands: the model has no {', '.join(missing)}; its commands: "
+                + ", ".join(sorted(have))
+            )
+    else:
+        names = [n for n in FIG_7_8 if n != "omega" and n in have]
+        if len(names) < 2:
+            names = [n for n in ("O_INSEN", "A_INSEN") if n in have]
+    if len(names) < 2 or len(set(names)) != len(names):
+        raise SpinalError(f"a map needs at least two different commands, got {names}")
+    return names
+
+
 def cmd_maps(a) -> dict:
     from itertools import combinations
 
+    from jaxgait import models
     from jaxgait.spinal.figures import plot_maps
     from jaxgait.spinal.search import MEASURES, Search, run_search
 
-    names = [n for n in FIG_7_8 if n != "omega"]
+    have = {c.name for c in models.get_model(load_preset(a.preset)[0]).controller.commands}
+    names = map_commands(have, a.commands)
+    with_z = "omega" in have and a.omegas > 0
     lo, hi = FIG_7_8["omega"]
-    zs = tuple(float(v) for v in np.linspace(lo, hi, a.omegas))
+    zs = tuple(float(v) for v in np.linspace(lo, hi, a.omegas)) if with_z else ()
     pairs = []
     for x, y in combinations(names, 2):
-        xv = tuple(float(v) for v in np.linspace(*FIG_7_8[x], a.n))
-        yv = tuple(float(v) for v in np.linspace(*FIG_7_8[y], a.n))
-        s = Search(x, xv, y, yv, {}, a.hold, a.measure, a.warmup, z="omega", z_values=zs)
+        xv = tuple(float(v) for v in np.linspace(*MAP_RANGES[x], a.n))
+        yv = tuple(float(v) for v in np.linspace(*MAP_RANGES[y], a.n))
+        z = "omega" if with_z else None
+        s = Search(x, xv, y, yv, {}, a.hold, a.measure, a.warmup, z=z, z_values=zs)
         r = run_search(a.preset, s)
         sp = r["grid"]["speed_mps"]
         ok = np.isfinite(sp)
@@ -191,7 +225,7 @@ def cmd_maps(a) -> dict:
     walked = allsp[np.isfinite(allsp)]
     res = {
         "model": pairs[0]["model"],
-        "ranges": FIG_7_8,
+        "ranges": {n: MAP_RANGES[n] for n in names + (["omega"] if with_z else [])},
         "pairs": pairs,
         "walked": int(walked.size),
         "settings": int(allsp.size),
@@ -286,7 +320,15 @@ def add_parsers(sub) -> None:
     q = sub.add_parser("maps", help="Fig. 7.9-7.10: the commands of Fig. 7.8 two by two")
     q.add_argument("preset")
     q.add_argument("--n", type=int, default=7, help="values per command (7)")
-    q.add_argument("--omegas", type=int, default=6, help="omega values, one map row each (6)")
+    q.add_argument(
+        "--commands",
+        default=None,
+        help="commands mapped two by two, comma separated (default: Fig. 7.8's that the "
+        "model has, else O_INSEN,A_INSEN)",
+    )
+    q.add_argument(
+        "--omegas", type=int, default=6, help="omega values, one map row each (6; 0: none)"
+    )
     q.add_argument("--hold", type=float, default=10.0, help="seconds per setting (10)")
     q.add_argument("--measure", type=float, default=4.0, help="measured last seconds (4)")
     q.add_argument("--warmup", type=float, default=10.0, help="seconds at the defaults first")

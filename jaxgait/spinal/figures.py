@@ -263,8 +263,9 @@ def plot_tuning(path, history: list[dict]) -> Path:
 
 def plot_maps(path, pairs: list[dict], measure: str) -> Path:
     """Thesis Fig. 7.9-7.10: one quadrant of the systematic searches, a map of ``measure``
-    per (pair of commands: column, z value: row), on one colour scale; blank = fell."""
-    nz = len(pairs[0]["z_values"])
+    per (pair of commands: column, z value: row), on one colour scale; blank = fell.  A
+    search without ``z`` (a model without omega: FBL, FBL-) is one row."""
+    nz = len(pairs[0].get("z_values", ())) or 1
     fig = Figure(figsize=(2.0 * len(pairs) + 1.2, 1.7 * nz + 0.8), layout="constrained")
     axes = np.atleast_2d(fig.subplots(nz, len(pairs), squeeze=False))
     vals = np.concatenate([np.ravel(np.asarray(r["grid"][measure], float)) for r in pairs])
@@ -273,6 +274,7 @@ def plot_maps(path, pairs: list[dict], measure: str) -> Path:
     im = None
     for c, r in enumerate(pairs):
         g = np.asarray(r["grid"][measure], float)
+        g = g if "z" in r else g[None]
         for k in range(nz):
             ax = axes[k, c]
             im = ax.imshow(
@@ -285,7 +287,7 @@ def plot_maps(path, pairs: list[dict], measure: str) -> Path:
                 ax.set_xlabel(
                     f"{r['x']}\n[{r['x_values'][0]:g}, {r['x_values'][-1]:g}]", fontsize=7
                 )
-            if c == 0:
+            if c == 0 and "z" in r:
                 ax.set_ylabel(f"{r['z']} {r['z_values'][k]:.2f}", fontsize=7)
             if k == 0:
                 ax.set_title(
