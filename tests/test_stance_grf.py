@@ -163,6 +163,31 @@ def test_human_likeness_of_winter_itself_and_of_a_shifted_copy():
     assert float(criterion_value("grf_corr", m, {})) == float(out["shifted"]["grf_corr"])
 
 
+def test_standard_score_criteria_of_winter_an_offset_copy_and_no_cycle():
+    """Wang's standard score as a criterion: 0 for Winter's own curves, -1 for every joint
+    one human SD off (an offset a correlation does not see), capped for no full cycle."""
+    from jaxgait.analysis import refdata
+    from jaxgait.analysis.measures import SCORE_UNDEFINED, standard_scores
+    from jaxgait.train.objective import STANDARD_SCORE_CAP, criterion_value
+
+    ref = refdata.winter_walking_kinematics()
+    mean, sd = np.asarray(ref.mean_deg), np.asarray(ref.sd_deg)
+    for curves, want in ((mean, 0.0), (mean + sd, 1.0), (mean - 2 * sd, 2.0)):
+        z = np.asarray(standard_scores(jnp.asarray(curves, jnp.float32), ref))
+        np.testing.assert_allclose(z, want, atol=1e-5)
+        m = {
+            "standard_score": jnp.asarray(z.mean()),
+            **{f"standard_score_{j}": jnp.asarray(z[i]) for i, j in enumerate(JOINTS)},
+        }
+        for name in ("standard_score", *(f"standard_score_{j}" for j in JOINTS)):
+            assert float(criterion_value(name, m, {})) == pytest.approx(-want, abs=1e-5)
+    fell = {"standard_score": jnp.asarray(SCORE_UNDEFINED)}
+    assert float(criterion_value("standard_score", fell, {})) == -STANDARD_SCORE_CAP
+
+
+JOINTS = ("hip", "knee", "ankle")
+
+
 def test_evaluate_logs_at_the_interval_asked_and_refuses_a_fraction_of_a_step():
     from jaxgait import evaluation
 

@@ -54,8 +54,11 @@ fall (-1 if it fell), ``flight`` = its flight fraction (0 if it fell) and ``flig
 flight fraction x duration [s] (fallen or not), for running; the human-likeness criteria
 ``grf_corr`` (the vertical GRF's correlation with Winter's over the last cycle), ``grf_peak``
 (-(per-stance peak above :data:`GRF_PEAK_BOUND_BW`) in BW), ``corr_hip``, ``corr_knee``,
-``corr_ankle`` (each joint's correlation; ``angles`` is their minimum) and ``rom``
-(-(|knee| + |ankle| range-of-motion difference from Winter's) / 10 deg).
+``corr_ankle`` (each joint's correlation; ``angles`` is their minimum), ``rom``
+(-(|knee| + |ankle| range-of-motion difference from Winter's) / 10 deg) and
+``standard_score`` (-(Wang's Table 1 standard score), the mean over hip, knee and ankle,
+capped at :data:`STANDARD_SCORE_CAP`) with its per-joint ``standard_score_hip``,
+``standard_score_knee``, ``standard_score_ankle``.
 """
 
 from __future__ import annotations
@@ -128,6 +131,18 @@ def _grf_peak(m: Measures) -> jax.Array:
     return -jnp.maximum(m["grf_peak_max_bw"] - GRF_PEAK_BOUND_BW, 0.0)
 
 
+#: Cap [SD] of the standard-score criteria: a rollout without a full cycle has the measures'
+#: sentinel score (99), and a score above a few SD says no more about human-likeness.
+STANDARD_SCORE_CAP = 5.0
+
+
+def _standard_score(key: str):
+    """-min(standard score, :data:`STANDARD_SCORE_CAP`) of measure ``key`` [SD]: Wang et al.
+    2012 Table 1's score (mean over the cycle of |model - human mean| / human SD), which,
+    unlike a correlation, also counts offsets (a knee still flexed at touchdown)."""
+    return lambda m: -jnp.minimum(m[key], STANDARD_SCORE_CAP)
+
+
 def _rom(m: Measures) -> jax.Array:
     """-(|knee| + |ankle| range-of-motion difference from the reference) / 10 deg."""
     return -(jnp.abs(m["rom_knee_diff_deg"]) + jnp.abs(m["rom_ankle_diff_deg"])) / 10.0
@@ -148,6 +163,10 @@ EXTRA_CRITERIA = {
     "corr_knee": lambda m: m["corr_knee"],
     "corr_ankle": lambda m: m["corr_ankle"],
     "rom": _rom,
+    "standard_score": _standard_score("standard_score"),
+    "standard_score_hip": _standard_score("standard_score_hip"),
+    "standard_score_knee": _standard_score("standard_score_knee"),
+    "standard_score_ankle": _standard_score("standard_score_ankle"),
 }
 #: Targets the extra criteria need.
 EXTRA_TARGETS = {"upright_speed": ("v_desired",)}
@@ -187,6 +206,10 @@ CRITERION_SCALE = {
     "corr_knee": 0.1,
     "corr_ankle": 0.1,
     "rom": 1.0,
+    "standard_score": 0.5,
+    "standard_score_hip": 0.5,
+    "standard_score_knee": 0.5,
+    "standard_score_ankle": 0.5,
 }
 
 
