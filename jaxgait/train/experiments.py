@@ -65,6 +65,11 @@ flat ground and 120 m on the perturbed environments, entrance conditions of Tabl
   (:mod:`jaxgait.control.fblankle`: a swing drive of SOL and GAS apart from their stance
   S0, and TA damping of the foot's plantarflexion in stance), from ``fbl_ankle_walk``
   (``fbl_humanlike`` with the extras neutral, the same gait).
+* fblplus_humanlike: the same search on FBL+ (16 x 200, sigma 0.05), whose swing-end PD
+  rules (thesis 2.1.3: VAS towards a knee target, HFL/GLU towards a hip target once the
+  swing foot is ahead of the CoM) extend the knee before landing; GRF-peak weight 30, energy
+  0.04 per J/m and 10 x -(Wang's standard score), from ``fblplus_humanlike_start``
+  (``fbl_humanlike`` lifted to FBL+ with a gentle VAS swing-end PD).
 * fblplus_run: exp5's stages (thesis 3.3.1) found a fast walk (2.37 m/s over 60 s, double
   stance 0.11 of the time, no flight: experiments/full/exp5, shipped as ``fblplus_fastwalk``),
   because nothing in them asks for flight.  This CMA-ES search (16 x 150, 20 s rollouts,
@@ -465,6 +470,11 @@ _HUMANLIKE_WEIGHTS = _QUICKSTART_WEIGHTS + (
     ("corr_ankle", 10.0),
     ("energy_per_m", 0.02),
 )
+#: The FBL+ search's weights: the human-likeness terms with the GRF-peak and energy weights of
+#: ``fbl_ankle_humanlike``'s shipped search (30, 0.04) and Wang's standard score (10 per SD).
+_HUMANLIKE_PLUS_WEIGHTS = tuple(
+    (k, {"grf_peak": 30.0, "energy_per_m": 0.04}.get(k, w)) for k, w in _HUMANLIKE_WEIGHTS
+) + (("standard_score", 10.0),)
 # shared settings of several experiments (keyword groups of ``Experiment``)
 _HUMANLIKE_CMAES = {
     "optimiser": "cmaes",
@@ -564,6 +574,17 @@ EXPERIMENTS: dict[str, Experiment] = {
             model="fbl_ankle",
             init="fbl_ankle_walk",
             **_HUMANLIKE_CMAES,
+        ),
+        _e(
+            name="fblplus_humanlike",
+            description=(
+                "the human-likeness search on FBL+ (its swing-end PD rules land the leg with an "
+                "extended knee), with Wang's standard score, from fblplus_humanlike_start"
+            ),
+            model="fblplus",
+            init="fblplus_humanlike_start",
+            confirm_best=True,
+            **{**_HUMANLIKE_CMAES, "weights": _HUMANLIKE_PLUS_WEIGHTS, "iterations": 200},
         ),
         _e(
             name="exp4",
