@@ -157,8 +157,12 @@ def test_human_likeness_of_winter_itself_and_of_a_shifted_copy():
         "rom_knee_diff_deg": jnp.asarray(-5.0),
         "rom_ankle_diff_deg": jnp.asarray(15.0),
         "grf_corr": out["shifted"]["grf_corr"],
+        "grf_loading_rate_max_bw_s": jnp.asarray(2100.0),
     }
     assert float(criterion_value("grf_peak", m, {})) == pytest.approx(-0.5)
+    assert float(criterion_value("grf_loading_rate", m, {})) == pytest.approx(-2.0)
+    m["grf_loading_rate_max_bw_s"] = jnp.asarray(80.0)  # a heel landing: no penalty
+    assert float(criterion_value("grf_loading_rate", m, {})) == 0.0
     assert float(criterion_value("rom", m, {})) == pytest.approx(-2.0)
     assert float(criterion_value("grf_corr", m, {})) == float(out["shifted"]["grf_corr"])
 

@@ -65,7 +65,7 @@ flat ground and 120 m on the perturbed environments, entrance conditions of Tabl
   (:mod:`jaxgait.control.fblankle`: a swing drive of SOL and GAS apart from their stance
   S0, and TA damping of the foot's plantarflexion in stance), from ``fbl_ankle_walk``
   (``fbl_humanlike`` with the extras neutral, the same gait).
-* fblplus_humanlike: the same search on FBL+ (16 x 200, sigma 0.05), whose swing-end PD
+* fblplus_humanlike: the same search on FBL+ (16 x 350, sigma 0.05), whose swing-end PD
   rules (thesis 2.1.3: VAS towards a knee target, HFL/GLU towards a hip target once the
   swing foot is ahead of the CoM) extend the knee before landing; GRF-peak weight 30, energy
   0.04 per J/m and 10 x -(Wang's standard score), from ``fblplus_humanlike_start``
@@ -584,7 +584,7 @@ EXPERIMENTS: dict[str, Experiment] = {
             model="fblplus",
             init="fblplus_humanlike_start",
             confirm_best=True,
-            **{**_HUMANLIKE_CMAES, "weights": _HUMANLIKE_PLUS_WEIGHTS, "iterations": 200},
+            **{**_HUMANLIKE_CMAES, "weights": _HUMANLIKE_PLUS_WEIGHTS, "iterations": 350},
         ),
         _e(
             name="exp4",

@@ -53,7 +53,8 @@ fall, so a search from a falling start is not pulled towards v* before it walks)
 fall (-1 if it fell), ``flight`` = its flight fraction (0 if it fell) and ``flight_time`` =
 flight fraction x duration [s] (fallen or not), for running; the human-likeness criteria
 ``grf_corr`` (the vertical GRF's correlation with Winter's over the last cycle), ``grf_peak``
-(-(per-stance peak above :data:`GRF_PEAK_BOUND_BW`) in BW), ``corr_hip``, ``corr_knee``,
+(-(per-stance peak above :data:`GRF_PEAK_BOUND_BW`) in BW), ``grf_loading_rate``
+(-(largest one-step loading rate above :data:`GRF_RATE_BOUND_BW_S`) per 1000 BW/s), ``corr_hip``, ``corr_knee``,
 ``corr_ankle`` (each joint's correlation; ``angles`` is their minimum), ``rom``
 (-(|knee| + |ankle| range-of-motion difference from Winter's) / 10 deg) and
 ``standard_score`` (-(Wang's Table 1 standard score), the mean over hip, knee and ankle,
@@ -131,6 +132,19 @@ def _grf_peak(m: Measures) -> jax.Array:
     return -jnp.maximum(m["grf_peak_max_bw"] - GRF_PEAK_BOUND_BW, 0.0)
 
 
+#: Bound [BW/s] above which the largest one-step loading rate of the vertical GRF is penalised
+#: (``grf_loading_rate``): a forefoot landing after the heel raises the GRF by most of a body
+#: weight within one 0.5 ms step (about 2,000 BW/s) while the peak stays low; a heel landing
+#: loads at tens to a few hundred BW/s.
+GRF_RATE_BOUND_BW_S = 100.0
+
+
+def _grf_loading_rate(m: Measures) -> jax.Array:
+    """-(largest per-stance one-step loading rate above :data:`GRF_RATE_BOUND_BW_S`) per
+    1000 BW/s of the vertical GRF, measured at the physics step."""
+    return -jnp.maximum(m["grf_loading_rate_max_bw_s"] - GRF_RATE_BOUND_BW_S, 0.0) / 1000.0
+
+
 #: Cap [SD] of the standard-score criteria: a rollout without a full cycle has the measures'
 #: sentinel score (99), and a score above a few SD says no more about human-likeness.
 STANDARD_SCORE_CAP = 5.0
@@ -159,6 +173,7 @@ EXTRA_CRITERIA = {
     "flight_time": _flight_time,
     "grf_corr": lambda m: m["grf_corr"],
     "grf_peak": _grf_peak,
+    "grf_loading_rate": _grf_loading_rate,
     "corr_hip": lambda m: m["corr_hip"],
     "corr_knee": lambda m: m["corr_knee"],
     "corr_ankle": lambda m: m["corr_ankle"],
@@ -202,6 +217,7 @@ CRITERION_SCALE = {
     "flight_time": 1.0,
     "grf_corr": 0.1,
     "grf_peak": 0.5,
+    "grf_loading_rate": 0.5,
     "corr_hip": 0.1,
     "corr_knee": 0.1,
     "corr_ankle": 0.1,
