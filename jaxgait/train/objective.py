@@ -54,9 +54,9 @@ fall (-1 if it fell), ``flight`` = its flight fraction (0 if it fell) and ``flig
 flight fraction x duration [s] (fallen or not), for running; the human-likeness criteria
 ``grf_corr`` (the vertical GRF's correlation with Winter's over the last cycle), ``grf_peak``
 (-(per-stance peak above :data:`GRF_PEAK_BOUND_BW`) in BW), ``grf_loading_rate``
-(-(largest one-step loading rate above :data:`GRF_RATE_BOUND_BW_S`) per 1000 BW/s), ``corr_hip``, ``corr_knee``,
-``corr_ankle`` (each joint's correlation; ``angles`` is their minimum), ``rom``
-(-(|knee| + |ankle| range-of-motion difference from Winter's) / 10 deg) and
+(-(largest one-step loading rate above :data:`GRF_RATE_BOUND_BW_S`) per 1000 BW/s),
+``corr_hip``, ``corr_knee``, ``corr_ankle`` (each joint's correlation; ``angles`` is their
+minimum), ``rom`` (-(|knee| + |ankle| range-of-motion difference from Winter's) / 10 deg) and
 ``standard_score`` (-(Wang's Table 1 standard score), the mean over hip, knee and ankle,
 capped at :data:`STANDARD_SCORE_CAP`) with its per-joint ``standard_score_hip``,
 ``standard_score_knee``, ``standard_score_ankle``.
