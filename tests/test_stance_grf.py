@@ -14,6 +14,7 @@ from jaxgait.sim.trace import Events
 from jaxgait.world import envs
 
 DT = 0.0005
+JOINTS = ("hip", "knee", "ankle")
 
 
 def empty(E=6):
@@ -187,9 +188,6 @@ def test_standard_score_criteria_of_winter_an_offset_copy_and_no_cycle():
             assert float(criterion_value(name, m, {})) == pytest.approx(-want, abs=1e-5)
     fell = {"standard_score": jnp.asarray(SCORE_UNDEFINED)}
     assert float(criterion_value("standard_score", fell, {})) == -STANDARD_SCORE_CAP
-
-
-JOINTS = ("hip", "knee", "ankle")
 
 
 def test_evaluate_logs_at_the_interval_asked_and_refuses_a_fraction_of_a_step():

@@ -78,7 +78,7 @@ def test_fbl_ankle_humanlike_walks_20s_more_like_winter():
 
 
 @pytest.mark.slow
-def test_fblplus_humanlike_walks_20s_without_the_slap_and_lands_like_winter():
+def test_fblplus_humanlike_walks_20s_with_low_peaks_and_angles_like_winter():
     """The FBL+ human-like preset walks 20 s near 1.3 m/s with no stance GRF peak above 1.4 BW,
     its vertical GRF and every joint's angle correlating with Winter's, and an ankle above
     fbl_ankle_humanlike's 0.79 (experiments/humanlike/README.md: 60 s figures)."""
