@@ -151,16 +151,28 @@ def _register_network(doc: dict, model: str, where: str) -> None:
     table = doc.get("table", "fbl")
     if auto is not None and net.base != "fbl":
         raise PresetError(f"{where}: automatic speed control drives FBL networks only")
-    if table != ("auto_speed" if auto is not None else net.base):
+    want = net.base
+    if auto is not None:
+        want = "auto_speed_net" if _network_in_table(auto, where) else "auto_speed"
+    if table != want:
         raise PresetError(
             f"{where}: a network model on {net.base!r} drives the table {net.base!r} (its "
-            f"automatic speed control the 'auto_speed' table), not {table!r}"
+            f"automatic speed control the 'auto_speed' table, or 'auto_speed_net' with "
+            f"autopilot.network_in_table), not {table!r}"
         )
     ctrl = spinal_controller(net)
     if auto is not None:
         ctrl = _autopilot(auto, ctrl, model, where)
     models.register(models.planar_spec(ctrl), replace=True)
     _NETWORKS[model] = json.loads(json.dumps(entries))  # a copy the caller cannot change
+
+
+def _network_in_table(auto, where: str) -> bool:
+    """The ``autopilot.network_in_table`` flag (false when absent)."""
+    flag = auto.get("network_in_table", False) if isinstance(auto, dict) else False
+    if not isinstance(flag, bool):
+        raise PresetError(f"{where}: autopilot.network_in_table must be true or false")
+    return flag
 
 
 def _autopilot(auto, inner, model: str, where: str):
@@ -178,7 +190,7 @@ def _autopilot(auto, inner, model: str, where: str):
         FBL.check(vec, where=f"{where} (autopilot.base_params)")
     except ValueError as e:
         raise PresetError(str(e)) from None
-    return speed_controller(model, inner, vec)
+    return speed_controller(model, inner, vec, network_in_table=_network_in_table(auto, where))
 
 
 def defining_entries(name: str) -> dict:

@@ -122,6 +122,42 @@ def test_auto_preset_round_trip_and_fresh_state(tmp_path):
         presets.preset_from_dict(bad, where="x.json")
 
 
+def test_network_in_the_table_drives_the_same_walk_and_its_gains_move_it():
+    """With the network's parameters moved into the table (to train them with the law) the
+    rollout is the same, bit for bit; a changed ``net_`` entry changes the walk."""
+    from jaxgait.spinal.tune import expand_names
+
+    a = auto_preset("3fbl_walk", "t_auto_a", {"k_p": 0.03})
+    b = auto_preset(a, "t_auto_b", network_in_table=True)
+    try:
+        cfg = sim.SimConfig(duration=1.0)
+        env = envs.make_env("flat", jax.random.PRNGKey(0))
+        out = []
+        for doc in (a, b):
+            name, vec, _ = presets.preset_from_dict(doc, where=doc["model"])
+            model = models.get_model(name)
+            f = sim.make_rollout(model, cfg, batched=False)
+            out.append((model, vec, f(jnp.asarray(vec, jnp.float32), env)[0]))
+        (ma, va, ta), (mb, vb, tb) = out
+        assert ma.table.name == "auto_speed" and mb.table.name == "auto_speed_net"
+        assert mb.table.size == AUTO_SPEED.size + 28
+        np.testing.assert_array_equal(np.asarray(ta.com), np.asarray(tb.com))
+        i = mb.table.names.index("net_G_SOL")
+        assert vb[i] == a["autopilot"]["base_params"]["G_SOL"]
+        vb2 = vb.copy()
+        vb2[i] *= 0.9
+        f = sim.make_rollout(mb, cfg, batched=False)
+        tc = f(jnp.asarray(vb2, jnp.float32), env)[0]
+        assert not np.array_equal(np.asarray(tc.com), np.asarray(tb.com))
+        names = expand_names(("k_p", "net_*"), mb.table.names)
+        assert names[0] == "k_p" and len(names) == 29 and names[-1] == "net_delta_S"
+        with pytest.raises(Exception, match="unknown gains"):
+            expand_names(("nett_*",), mb.table.names)
+    finally:
+        presets.forget_network("t_auto_a")
+        presets.forget_network("t_auto_b")
+
+
 @pytest.mark.slow
 def test_tracking_command_runs_at_a_tiny_size(tmp_path):
     from jaxgait.spinal.cli import main

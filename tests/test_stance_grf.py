@@ -168,6 +168,18 @@ def test_human_likeness_of_winter_itself_and_of_a_shifted_copy():
     assert float(criterion_value("grf_corr", m, {})) == float(out["shifted"]["grf_corr"])
 
 
+def test_corr_floor_is_zero_above_the_floor_and_sums_each_shortfall_below_it():
+    """The hinge constraint on the correlations: nothing while every one clears the floor,
+    then the sum of the shortfalls (knee 0.1 and GRF 0.3 below it: -0.4)."""
+    from jaxgait.train.objective import CORR_FLOOR, CORR_FLOOR_KEYS, criterion_value
+
+    m = {k: jnp.asarray(CORR_FLOOR + 0.01) for k in CORR_FLOOR_KEYS}
+    assert float(criterion_value("corr_floor", m, {})) == 0.0
+    m["corr_knee"] = jnp.asarray(CORR_FLOOR - 0.1)
+    m["grf_corr"] = jnp.asarray(CORR_FLOOR - 0.3)
+    assert float(criterion_value("corr_floor", m, {})) == pytest.approx(-0.4, abs=1e-6)
+
+
 def test_standard_score_criteria_of_winter_an_offset_copy_and_no_cycle():
     """Wang's standard score as a criterion: 0 for Winter's own curves, -1 for every joint
     one human SD off (an offset a correlation does not see), capped for no full cycle."""

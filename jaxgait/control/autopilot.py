@@ -29,7 +29,10 @@ wraps a network controller, takes the target speed v* [m/s] as its command and e
 5. runs the network with that control vector (the other commands as scheduled).
 
 The law's gains are its parameter table (:data:`AUTO_SPEED`, what an optimiser searches); the
-network's own FBL parameters are fixed data of the wrapper.  The wrapper's commands are
+network's own FBL parameters are fixed data of the wrapper, or, with ``network_in_table``,
+entries of the table too (named ``net_`` + the FBL name, :func:`law_table`), so that one
+search trains the network's gains and its command law together on several target speeds
+(as Di Russo et al. 2023 trained one model over 0.3-1.9 m/s).  The wrapper's commands are
 ``v_target`` followed by the network's, so a schedule can move the target and still offset
 any command of the network.
 """
@@ -96,6 +99,23 @@ AUTO_SPEED = ParamTable(
     ),
 )
 
+#: prefix of the network's own parameters in a table that holds them (:func:`law_table`)
+NET_PREFIX = "net_"
+
+
+def law_table(inner_table: ParamTable) -> ParamTable:
+    """:data:`AUTO_SPEED` followed by the network's parameters, each named ``net_`` + its
+    name, with its start value, range and source (the table ``auto_speed_net``: the law and
+    the network it drives trained together; a preset gives the values)."""
+    net = tuple(
+        ParamSpec(
+            NET_PREFIX + s.name, s.init, s.lower, s.upper, f"network parameter ({s.source})", s.unit
+        )
+        for s in inner_table.specs
+    )
+    return ParamTable(AUTO_SPEED.name + "_net", AUTO_SPEED.specs + net)
+
+
 V_TARGET = Command("v_target", 1.3, "m/s", "target walking speed", 0.2, 3.0)
 
 
@@ -105,6 +125,7 @@ class AutoSettings:
 
     inner: Controller
     inner_params: np.ndarray
+    network_in_table: bool = False
 
 
 @struct.dataclass
@@ -175,16 +196,24 @@ def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: d
     grade = grade_at_touchdown(sens.feet, sens.touchdown, s.grade, p["k_g"])
     sched = {c.name: command[c.name] for c in inner.commands}
     cmd = speed_commands(p, v_target, v, integral, sched, inner.commands, grade)
-    q = inner.table.unpack(jnp.asarray(st.inner_params, sens.f_norm.dtype))
+    if st.network_in_table:
+        q = {n: p[NET_PREFIX + n] for n in inner.table.names}
+    else:
+        q = inner.table.unpack(jnp.asarray(st.inner_params, sens.f_norm.dtype))
     stim, inner_state = inner.step(inner, q, sens, s.inner, cmd, dt)
     return stim, AutoState(inner=inner_state, v=v, integral=integral, grade=grade)
 
 
 def speed_controller(
-    name: str, inner: Controller, inner_params, description: str = ""
+    name: str,
+    inner: Controller,
+    inner_params,
+    description: str = "",
+    network_in_table: bool = False,
 ) -> Controller:
     """The closed-loop speed controller around the network controller ``inner`` driven by
-    ``inner_params`` (its table's vector)."""
+    ``inner_params`` (its table's vector), or with ``network_in_table`` by the ``net_``
+    entries of its own table (:func:`law_table`, ``inner_params`` their start values)."""
     vec = np.asarray(inner_params, np.float64)
     if vec.shape != (inner.table.size,):
         raise ValueError(
@@ -195,11 +224,11 @@ def speed_controller(
         raise ValueError(f"{name}: the wrapped model {inner.name!r} has no O_INBAS command")
     return Controller(
         name=name,
-        table=AUTO_SPEED,
+        table=law_table(inner.table) if network_in_table else AUTO_SPEED,
         n_muscles=inner.n_muscles,
         init=auto_init,
         step=auto_step,
         commands=(V_TARGET,) + tuple(inner.commands),
-        settings=AutoSettings(inner=inner, inner_params=vec),
+        settings=AutoSettings(inner=inner, inner_params=vec, network_in_table=network_in_table),
         description=description or f"automatic speed control of {inner.name}",
     )

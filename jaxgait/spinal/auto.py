@@ -14,18 +14,27 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxgait import models, sim
-from jaxgait.control.autopilot import AUTO_SPEED
+from jaxgait.control.autopilot import AUTO_SPEED, NET_PREFIX
 from jaxgait.control.commands import schedule
-from jaxgait.presets import load_preset
+from jaxgait.presets import load_preset, preset_from_dict
 from jaxgait.spinal.record import SpinalError
 
 
-def auto_preset(network_preset, name: str, gains: dict | None = None) -> dict:
-    """A speed-controlled version of a network preset (name, path or dict document)."""
-    model, vec, doc = load_preset(network_preset)
+def auto_preset(
+    network_preset, name: str, gains: dict | None = None, network_in_table: bool = False
+) -> dict:
+    """A speed-controlled version of a network preset (name, path or dict document); with
+    ``network_in_table`` the network's FBL parameters are entries of its table as well
+    (``net_`` + name, table ``auto_speed_net``), to be trained with the law."""
+    if isinstance(network_preset, dict):
+        model, vec, doc = preset_from_dict(network_preset, where=str(network_preset.get("model")))
+    else:
+        model, vec, doc = load_preset(network_preset)
     if "network" not in doc:
         raise SpinalError(f"{network_preset}: not a network preset (no 'network' entry)")
     if "autopilot" in doc:
+        if network_in_table and not doc["autopilot"].get("network_in_table", False):
+            return _network_into_table(doc, name, gains)
         raise SpinalError(f"{network_preset}: already has an automatic controller")
     g = dict(zip(AUTO_SPEED.names, map(float, AUTO_SPEED.init), strict=True))
     unknown = sorted(set(gains or {}) - set(g))
@@ -33,13 +42,37 @@ def auto_preset(network_preset, name: str, gains: dict | None = None) -> dict:
         raise SpinalError(f"unknown speed-law gains {unknown}; known: {list(g)}")
     g.update({k: float(v) for k, v in (gains or {}).items()})
     base = dict(zip(models.get_model(model).table.names, map(float, vec), strict=True))
+    auto = {"law": "speed", "base_params": base, "source": str(network_preset)}
+    table = AUTO_SPEED.name
+    if network_in_table:
+        g.update({NET_PREFIX + k: v for k, v in base.items()})
+        auto["network_in_table"] = True
+        table = AUTO_SPEED.name + "_net"
     return {
         "model": name,
-        "table": AUTO_SPEED.name,
+        "table": table,
         "description": f"{model} with automatic speed control (target v_target [m/s])",
         "params": g,
         "network": doc["network"],
-        "autopilot": {"law": "speed", "base_params": base, "source": str(network_preset)},
+        "autopilot": auto,
+    }
+
+
+def _network_into_table(doc: dict, name: str, gains: dict | None) -> dict:
+    """An automatic-control preset with its network's parameters moved into its table."""
+    g = dict(doc["params"])
+    unknown = sorted(set(gains or {}) - set(g))
+    if unknown:
+        raise SpinalError(f"unknown speed-law gains {unknown}; known: {list(g)}")
+    g.update({k: float(v) for k, v in (gains or {}).items()})
+    auto = dict(doc["autopilot"], network_in_table=True)
+    g.update({NET_PREFIX + k: float(v) for k, v in auto["base_params"].items()})
+    return {
+        **doc,
+        "model": name,
+        "table": AUTO_SPEED.name + "_net",
+        "params": g,
+        "autopilot": auto,
     }
 
 

@@ -285,7 +285,9 @@ def cmd_search(a) -> dict:
 def cmd_auto(a) -> dict:
     from jaxgait.spinal.auto import auto_preset
 
-    doc = auto_preset(a.preset, a.name, _name_values(a.gain, "--gain"))
+    doc = auto_preset(
+        a.preset, a.name, _name_values(a.gain, "--gain"), network_in_table=a.network_in_table
+    )
     path = write_json(Path(a.out_dir), f"{a.name}.json", doc)
     print(f"wrote {path}")
     return {"presets": {"auto": str(path)}}
@@ -378,6 +380,11 @@ def _parser() -> argparse.ArgumentParser:
     q.add_argument("preset")
     q.add_argument("--name", required=True)
     q.add_argument("--gain", action="append", default=[], metavar="NAME=VALUE")
+    q.add_argument(
+        "--network-in-table",
+        action="store_true",
+        help="put the network's FBL parameters in the table (net_NAME) to train them with the law",
+    )
     q.add_argument("--out-dir", default="runs/spinal/models")
     q = sub.add_parser("track", help="speed tracking of a target profile")
     q.add_argument("preset")

@@ -77,6 +77,19 @@ class Tuning:
             raise SpinalError("nothing to tune: name at least one gain")
 
 
+def expand_names(requested, names) -> tuple[str, ...]:
+    """The table entries to train: each requested name, or every entry starting with a
+    prefix given as ``PREFIX*`` (``net_*``: every network parameter of a table with
+    ``network_in_table``), in table order, without repeats."""
+    out = []
+    for r in requested:
+        hit = [n for n in names if n.startswith(r[:-1])] if r.endswith("*") else [r]
+        if not hit or hit[0] not in names:
+            raise SpinalError(f"unknown gains {r!r}; the table's entries are {list(names)}")
+        out += [n for n in hit if n not in out]
+    return tuple(sorted(out, key=names.index))
+
+
 def random_profiles(key, n: int, tcfg: Tuning) -> np.ndarray:
     """(n, segments) target speeds [m/s], uniform in ``v_range``."""
     lo, hi = tcfg.v_range
@@ -118,12 +131,10 @@ class Tasks:
         if "v_target" not in self.model.controller.command_names:
             raise SpinalError(f"{preset}: model {name!r} has no v_target command to train")
         table = self.model.table
-        unknown = [n for n in tcfg.tune if n not in table.names]
-        if unknown:
-            raise SpinalError(f"unknown gains {unknown}; the law's gains are {list(table.names)}")
+        self.names = expand_names(tcfg.tune, table.names)
         self.preset, self.doc, self.base = preset, doc, np.asarray(vec, float)
         self.tcfg = tcfg
-        self.idx = np.array([table.names.index(n) for n in tcfg.tune])
+        self.idx = np.array([table.names.index(n) for n in self.names])
         self.lower = np.asarray(table.lower, float)[self.idx]
         self.upper = np.asarray(table.upper, float)[self.idx]
         v0 = float(doc.get("v0", sim.SimConfig.v0))
@@ -178,7 +189,8 @@ class Tasks:
 
 
 def tune(preset, tcfg: Tuning = Tuning(), log=print) -> dict:
-    """CMA-ES on the gains ``tcfg.tune`` of a ``v_target`` model; returns the history, the
+    """CMA-ES on the gains ``tcfg.tune`` (names, or ``PREFIX*`` for every entry with that
+    prefix) of a ``v_target`` model; returns the history, the
     best gains (by fitness; the last generation's mean is also scored) and a preset doc."""
     tasks = Tasks(preset, tcfg)
     opt = CMAES(popsize=tcfg.popsize, sigma_init=tcfg.sigma)
@@ -242,7 +254,7 @@ def tune(preset, tcfg: Tuning = Tuning(), log=print) -> dict:
         "chosen": choice,
         "source": str(preset),
     }
-    return {"history": history, "gains": gains, "tuned": list(tcfg.tune), "preset": doc}
+    return {"history": history, "gains": gains, "tuned": list(tasks.names), "preset": doc}
 
 
 def evaluate_law(preset, tcfg: Tuning, n_profiles: int = 8, seed: int = 1000) -> dict:

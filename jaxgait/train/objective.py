@@ -56,7 +56,8 @@ flight fraction x duration [s] (fallen or not), for running; the human-likeness 
 (-(per-stance peak above :data:`GRF_PEAK_BOUND_BW`) in BW), ``grf_loading_rate``
 (-(largest one-step loading rate above :data:`GRF_RATE_BOUND_BW_S`) per 1000 BW/s),
 ``corr_hip``, ``corr_knee``, ``corr_ankle`` (each joint's correlation; ``angles`` is their
-minimum), ``rom`` (-(|knee| + |ankle| range-of-motion difference from Winter's) / 10 deg) and
+minimum), ``corr_floor`` (-(sum of those three and ``grf_corr``'s shortfalls below
+:data:`CORR_FLOOR`), a hinge constraint), ``rom`` (-(|knee| + |ankle| range-of-motion difference from Winter's) / 10 deg) and
 ``standard_score`` (-(Wang's Table 1 standard score), the mean over hip, knee and ankle,
 capped at :data:`STANDARD_SCORE_CAP`) with its per-joint ``standard_score_hip``,
 ``standard_score_knee``, ``standard_score_ankle``.
@@ -157,6 +158,22 @@ def _standard_score(key: str):
     return lambda m: -jnp.minimum(m[key], STANDARD_SCORE_CAP)
 
 
+#: Floor of the ``corr_floor`` criterion: the human-likeness targets ask each joint's and the
+#: vertical GRF's correlation with Winter to be at least 0.9; 0.915 leaves room for a 60 s
+#: walk's last cycle to differ from a 20 s training rollout's (0.003-0.005 in the presets).
+CORR_FLOOR = 0.915
+
+#: The correlations held above :data:`CORR_FLOOR` by ``corr_floor``.
+CORR_FLOOR_KEYS = ("corr_hip", "corr_knee", "corr_ankle", "grf_corr")
+
+
+def _corr_floor(m: Measures) -> jax.Array:
+    """-sum over hip, knee, ankle and vertical GRF of (:data:`CORR_FLOOR` - correlation)^+:
+    a hinge that is 0 while every correlation is above the floor, so a heavy weight holds
+    them there as constraints while lighter terms (energy) trade freely above it."""
+    return -sum(jnp.maximum(CORR_FLOOR - m[k], 0.0) for k in CORR_FLOOR_KEYS)
+
+
 def _rom(m: Measures) -> jax.Array:
     """-(|knee| + |ankle| range-of-motion difference from the reference) / 10 deg."""
     return -(jnp.abs(m["rom_knee_diff_deg"]) + jnp.abs(m["rom_ankle_diff_deg"])) / 10.0
@@ -178,6 +195,7 @@ EXTRA_CRITERIA = {
     "corr_knee": lambda m: m["corr_knee"],
     "corr_ankle": lambda m: m["corr_ankle"],
     "rom": _rom,
+    "corr_floor": _corr_floor,
     "standard_score": _standard_score("standard_score"),
     "standard_score_hip": _standard_score("standard_score_hip"),
     "standard_score_knee": _standard_score("standard_score_knee"),
@@ -222,6 +240,7 @@ CRITERION_SCALE = {
     "corr_knee": 0.1,
     "corr_ankle": 0.1,
     "rom": 1.0,
+    "corr_floor": 0.01,
     "standard_score": 0.5,
     "standard_score_hip": 0.5,
     "standard_score_knee": 0.5,
