@@ -57,7 +57,8 @@ flight fraction x duration [s] (fallen or not), for running; the human-likeness 
 (-(largest one-step loading rate above :data:`GRF_RATE_BOUND_BW_S`) per 1000 BW/s),
 ``corr_hip``, ``corr_knee``, ``corr_ankle`` (each joint's correlation; ``angles`` is their
 minimum), ``corr_floor`` (-(sum of those three and ``grf_corr``'s shortfalls below
-:data:`CORR_FLOOR`), a hinge constraint), ``rom`` (-(|knee| + |ankle| range-of-motion difference from Winter's) / 10 deg) and
+:data:`CORR_FLOOR`), a hinge constraint), ``rom`` (-(|knee| + |ankle| range-of-motion
+difference from Winter's) / 10 deg) and
 ``standard_score`` (-(Wang's Table 1 standard score), the mean over hip, knee and ankle,
 capped at :data:`STANDARD_SCORE_CAP`) with its per-joint ``standard_score_hip``,
 ``standard_score_knee``, ``standard_score_ankle``.
