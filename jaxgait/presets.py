@@ -190,7 +190,20 @@ def _autopilot(auto, inner, model: str, where: str):
         FBL.check(vec, where=f"{where} (autopilot.base_params)")
     except ValueError as e:
         raise PresetError(str(e)) from None
-    return speed_controller(model, inner, vec, network_in_table=_network_in_table(auto, where))
+    rate = auto.get("target_rate")
+    if rate is not None and (
+        isinstance(rate, bool) or not isinstance(rate, (int, float)) or rate <= 0
+    ):
+        raise PresetError(
+            f"{where}: autopilot.target_rate must be a number > 0 [m/s^2], got {rate!r}"
+        )
+    return speed_controller(
+        model,
+        inner,
+        vec,
+        network_in_table=_network_in_table(auto, where),
+        target_rate=None if rate is None else float(rate),
+    )
 
 
 def defining_entries(name: str) -> dict:

@@ -96,6 +96,35 @@ def test_targets_are_limited_to_the_speeds_held():
     assert (lo, hi) == (0.2, 3.0)
 
 
+def test_a_rate_limit_turns_a_target_step_into_a_ramp():
+    """A step of v_target from 1.3 to 0.7 m/s with a_max 0.2 m/s^2: the law's target falls
+    0.2 m/s per second (0.1 mm/s per 0.5 ms step) and reaches 0.7 after 3 s; the speed
+    range still applies; a preset refuses a rate that is not a positive number."""
+    p = {"v_min": 0.2, "v_max": 3.0}
+    dt, prev = 0.0005, jnp.asarray(1.3)
+    for _ in range(2000):  # 1 s
+        prev = target_speed(p, 0.7, prev, dt, 0.2)
+    assert float(prev) == pytest.approx(1.1, abs=1e-4)
+    for _ in range(6000):  # 3 s more: arrived and held
+        prev = target_speed(p, 0.7, prev, dt, 0.2)
+    assert float(prev) == pytest.approx(0.7, abs=1e-6)
+    assert float(target_speed({"v_min": 1.1, "v_max": 1.3}, 0.7, 1.1, dt, 0.2)) == pytest.approx(
+        1.1
+    )
+    assert float(target_speed(p, 0.7, prev, dt)) == pytest.approx(
+        0.7
+    )  # no limit: the clipped command
+    doc = auto_preset("3fbl_walk", "t_auto_rate", target_rate=0.3)
+    try:
+        model = models.get_model(presets.preset_from_dict(doc, where="r.json")[0])
+        assert model.controller.settings.target_rate == 0.3
+    finally:
+        presets.forget_network("t_auto_rate")
+    bad = dict(doc, autopilot=dict(doc["autopilot"], target_rate=-1))
+    with pytest.raises(presets.PresetError, match="target_rate must be a number > 0"):
+        presets.preset_from_dict(bad, where="r.json")
+
+
 def test_auto_preset_round_trip_and_fresh_state(tmp_path):
     doc = auto_preset("3fbl_walk", "t_auto", {"k_p": 0.03})
     path = tmp_path / "t_auto.json"

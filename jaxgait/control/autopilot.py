@@ -5,7 +5,10 @@ work (thesis 7.3, 8.2).  :func:`speed_controller` closes the loop inside the jit
 wraps a network controller, takes the target speed v* [m/s] as its command and every step
 
 0. limits the target to the speeds the model holds, v* <- clip(v*, v_min, v_max) (the
-   defaults 0.2 and 3 m/s leave it alone; a preset sets them from ``spinal range``);
+   defaults 0.2 and 3 m/s leave it alone; a preset sets them from ``spinal range``), and,
+   with a rate limit a_max [m/s^2] (fixed data of the law, the preset's
+   ``autopilot.target_rate``), its rate: the target the law uses moves towards v* at most
+   a_max per second (a step of the command becomes a ramp; none by default);
 1. filters the forward centre-of-mass velocity, v' = (v_com - v) / tau_v -> v [m/s];
 2. integrates the error e = v* - v, I' = e, clamped to [-i_max, i_max] [m];
 3. estimates the ground grade g [-] (rise over run) at every touchdown from the two
@@ -126,17 +129,19 @@ class AutoSettings:
     inner: Controller
     inner_params: np.ndarray
     network_in_table: bool = False
+    target_rate: float | None = None
 
 
 @struct.dataclass
 class AutoState:
-    """The wrapped controller's state, the filtered speed v [m/s], the integral I [m] and
-    the grade estimate g [-]."""
+    """The wrapped controller's state, the filtered speed v [m/s], the integral I [m],
+    the grade estimate g [-] and the rate-limited target [m/s]."""
 
     inner: object
     v: jax.Array
     integral: jax.Array
     grade: jax.Array
+    target: jax.Array
 
 
 def grade_at_touchdown(feet, touchdown, grade, k_g):
@@ -153,9 +158,14 @@ def grade_at_touchdown(feet, touchdown, grade, k_g):
     return grade
 
 
-def target_speed(p: dict, v_target):
-    """Step 0 of the module docstring: the target within the speeds the model holds."""
-    return jnp.clip(v_target, p["v_min"], p["v_max"])
+def target_speed(p: dict, v_target, previous=None, dt=0.0, a_max=None):
+    """Step 0 of the module docstring: the target within the speeds the model holds and,
+    given the law's ``previous`` target and a rate limit ``a_max`` [m/s^2], within
+    a_max dt of it."""
+    raw = jnp.clip(v_target, p["v_min"], p["v_max"])
+    if previous is None or a_max is None:
+        return raw
+    return previous + jnp.clip(raw - previous, -a_max * dt, a_max * dt)
 
 
 def speed_commands(p: dict, v_target, v, integral, sched: dict, commands, grade=0.0) -> dict:
@@ -181,7 +191,7 @@ def auto_init(ctrl: Controller, sens: Sensors, dt: float) -> AutoState:
     inner = ctrl.settings.inner
     v0 = sens.com_vel[0]
     z = jnp.zeros_like(v0)
-    return AutoState(inner=inner.init(inner, sens, dt), v=v0, integral=z, grade=z)
+    return AutoState(inner=inner.init(inner, sens, dt), v=v0, integral=z, grade=z, target=v0)
 
 
 def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: dict, dt):
@@ -190,7 +200,7 @@ def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: d
     inner = st.inner
     a = 1.0 - jnp.exp(-dt / p["tau_v"])
     v = s.v + a * (sens.com_vel[0] - s.v)
-    v_target = target_speed(p, command["v_target"])
+    v_target = target_speed(p, command["v_target"], s.target, dt, st.target_rate)
     e = v_target - v
     integral = jnp.clip(s.integral + dt * e, -p["i_max"], p["i_max"])
     grade = grade_at_touchdown(sens.feet, sens.touchdown, s.grade, p["k_g"])
@@ -201,7 +211,8 @@ def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: d
     else:
         q = inner.table.unpack(jnp.asarray(st.inner_params, sens.f_norm.dtype))
     stim, inner_state = inner.step(inner, q, sens, s.inner, cmd, dt)
-    return stim, AutoState(inner=inner_state, v=v, integral=integral, grade=grade)
+    state = AutoState(inner=inner_state, v=v, integral=integral, grade=grade, target=v_target)
+    return stim, state
 
 
 def speed_controller(
@@ -210,10 +221,14 @@ def speed_controller(
     inner_params,
     description: str = "",
     network_in_table: bool = False,
+    target_rate: float | None = None,
 ) -> Controller:
     """The closed-loop speed controller around the network controller ``inner`` driven by
     ``inner_params`` (its table's vector), or with ``network_in_table`` by the ``net_``
-    entries of its own table (:func:`law_table`, ``inner_params`` their start values)."""
+    entries of its own table (:func:`law_table`, ``inner_params`` their start values);
+    ``target_rate`` [m/s^2] limits the rate of the target (step 0; None: no limit)."""
+    if target_rate is not None and not target_rate > 0:
+        raise ValueError(f"{name}: the target rate limit must be > 0 m/s^2, got {target_rate}")
     vec = np.asarray(inner_params, np.float64)
     if vec.shape != (inner.table.size,):
         raise ValueError(
@@ -229,6 +244,11 @@ def speed_controller(
         init=auto_init,
         step=auto_step,
         commands=(V_TARGET,) + tuple(inner.commands),
-        settings=AutoSettings(inner=inner, inner_params=vec, network_in_table=network_in_table),
+        settings=AutoSettings(
+            inner=inner,
+            inner_params=vec,
+            network_in_table=network_in_table,
+            target_rate=None if target_rate is None else float(target_rate),
+        ),
         description=description or f"automatic speed control of {inner.name}",
     )

@@ -21,11 +21,25 @@ from jaxgait.spinal.record import SpinalError
 
 
 def auto_preset(
-    network_preset, name: str, gains: dict | None = None, network_in_table: bool = False
+    network_preset,
+    name: str,
+    gains: dict | None = None,
+    network_in_table: bool = False,
+    target_rate: float | None = None,
 ) -> dict:
     """A speed-controlled version of a network preset (name, path or dict document); with
     ``network_in_table`` the network's FBL parameters are entries of its table as well
-    (``net_`` + name, table ``auto_speed_net``), to be trained with the law."""
+    (``net_`` + name, table ``auto_speed_net``), to be trained with the law; ``target_rate``
+    [m/s^2] limits how fast the law's target follows the command (``autopilot.target_rate``)."""
+    doc = _auto_preset(network_preset, name, gains, network_in_table)
+    if target_rate is not None:
+        if not target_rate > 0:
+            raise SpinalError(f"the target rate limit must be > 0 m/s^2, got {target_rate}")
+        doc["autopilot"] = dict(doc["autopilot"], target_rate=float(target_rate))
+    return doc
+
+
+def _auto_preset(network_preset, name, gains, network_in_table) -> dict:
     if isinstance(network_preset, dict):
         model, vec, doc = preset_from_dict(network_preset, where=str(network_preset.get("model")))
     else:

@@ -286,7 +286,11 @@ def cmd_auto(a) -> dict:
     from jaxgait.spinal.auto import auto_preset
 
     doc = auto_preset(
-        a.preset, a.name, _name_values(a.gain, "--gain"), network_in_table=a.network_in_table
+        a.preset,
+        a.name,
+        _name_values(a.gain, "--gain"),
+        network_in_table=a.network_in_table,
+        target_rate=a.target_rate,
     )
     path = write_json(Path(a.out_dir), f"{a.name}.json", doc)
     print(f"wrote {path}")
@@ -384,6 +388,12 @@ def _parser() -> argparse.ArgumentParser:
         "--network-in-table",
         action="store_true",
         help="put the network's FBL parameters in the table (net_NAME) to train them with the law",
+    )
+    q.add_argument(
+        "--target-rate",
+        type=float,
+        default=None,
+        help="limit how fast the law's target follows v_target [m/s^2] (default: no limit)",
     )
     q.add_argument("--out-dir", default="runs/spinal/models")
     q = sub.add_parser("track", help="speed tracking of a target profile")
