@@ -129,6 +129,28 @@ def test_winter_angles_correlate_perfectly(t0):
     assert float(out["cycle_start_s"]) == pytest.approx(t0 + 4.0, abs=1e-5)
 
 
+def test_the_mean_cycle_averages_the_last_cycles_a_single_cycle_does_not():
+    """Cycles alternately one human SD above and below Winter's mean (5 full cycles, the
+    last above): the last cycle scores 1 SD, the mean of the five 1/5 SD (samples at a
+    cycle's 100 % belong to the next cycle, hence the tolerance)."""
+    sd = np.stack([WINTER.hip_sd_deg, WINTER.knee_sd_deg, WINTER.ankle_sd_deg], axis=1)
+
+    def alternating(tt):
+        sign = np.where(np.floor((tt - 0.5) / PERIOD) % 2 == 0, 1.0, -1.0)[:, None]
+        curves = [periodic(WINTER.gait_cycle_pct, c, tt, 0.5) for c in WINTER.mean_deg.T]
+        offsets = [periodic(WINTER.gait_cycle_pct, c, tt, 0.5) for c in sd.T]
+        return np.stack(curves, 1) + sign * np.stack(offsets, 1)
+
+    out = measure(*make_rollout(angle_fn=alternating))
+    assert int(out["n_mean_cycles"]) == M.MEAN_CYCLES == 5
+    assert float(out["standard_score"]) == pytest.approx(1.0, abs=0.06)
+    assert float(out["mean_cycle_standard_score"]) == pytest.approx(0.2, abs=0.06)
+    plain = measure(*make_rollout())
+    for j in ("hip", "knee", "ankle"):
+        assert float(plain[f"mean_cycle_corr_{j}"]) > 0.995
+        assert float(out[f"mean_cycle_corr_{j}"]) > float(out[f"corr_{j}"]) - 1e-6
+
+
 def test_shifted_and_negated_angles_score_lower():
     def shifted(tt):
         return np.stack(

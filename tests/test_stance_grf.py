@@ -170,12 +170,12 @@ def test_human_likeness_of_winter_itself_and_of_a_shifted_copy():
 
 def test_corr_floor_is_zero_above_the_floor_and_sums_each_shortfall_below_it():
     """The hinge constraint on the correlations: nothing while every one clears the floor,
-    then the sum of the shortfalls (knee 0.1 and GRF 0.3 below it: -0.4)."""
+    then the sum of the shortfalls (mean-cycle knee 0.1 and GRF 0.3 below it: -0.4)."""
     from jaxgait.train.objective import CORR_FLOOR, CORR_FLOOR_KEYS, criterion_value
 
     m = {k: jnp.asarray(CORR_FLOOR + 0.01) for k in CORR_FLOOR_KEYS}
     assert float(criterion_value("corr_floor", m, {})) == 0.0
-    m["corr_knee"] = jnp.asarray(CORR_FLOOR - 0.1)
+    m["mean_cycle_corr_knee"] = jnp.asarray(CORR_FLOOR - 0.1)
     m["grf_corr"] = jnp.asarray(CORR_FLOOR - 0.3)
     assert float(criterion_value("corr_floor", m, {})) == pytest.approx(-0.4, abs=1e-6)
 

@@ -98,6 +98,11 @@ MEASURE_UNITS: dict[str, str] = {
     "standard_score_knee": "-",
     "standard_score_ankle": "-",
     "standard_score": "-",
+    "mean_cycle_corr_hip": "-",
+    "mean_cycle_corr_knee": "-",
+    "mean_cycle_corr_ankle": "-",
+    "mean_cycle_standard_score": "-",
+    "n_mean_cycles": "-",
     "cycle_valid": "bool",
     "cycle_angles_deg": "deg, shape (N, 3)",
     "cycle_start_s": "s",
@@ -395,6 +400,10 @@ def standard_scores(curves_deg, reference: refdata.Kinematics) -> jax.Array:
     return jnp.mean(jnp.abs(jnp.asarray(curves_deg) - mean) / sd, axis=-2)
 
 
+#: Cycles averaged by the ``mean_cycle_*`` measures (:func:`joint_angle_correlations`).
+MEAN_CYCLES = 5
+
+
 def joint_angle_correlations(
     trace: Trace,
     events: Events,
@@ -419,7 +428,10 @@ def joint_angle_correlations(
       ``standard_score`` (:func:`standard_scores`; :data:`SCORE_UNDEFINED` without a full
       cycle), ``cycle_valid`` (bool), ``cycle_angles_deg`` (N, 3) the resampled
       model angles [deg], ``cycle_start_s``, ``cycle_end_s`` [s]. Without a full cycle the
-      correlations and ``c_angles`` are :data:`CORR_UNDEFINED` (0).
+      correlations and ``c_angles`` are :data:`CORR_UNDEFINED` (0).  The same of the mean
+      curve of the last :data:`MEAN_CYCLES` full cycles (``n_mean_cycles`` of them exist):
+      ``mean_cycle_corr_hip``, ``_knee``, ``_ankle`` and ``mean_cycle_standard_score``; a
+      gait whose cycles differ has a last cycle that scores by chance, the mean less so.
     """
     ref = refdata.winter_walking_kinematics() if reference is None else reference
     ang = jnp.rad2deg(trace.qpos[:, jnp.array(LEG_ANGLE_QPOS[leg])])
@@ -430,7 +442,20 @@ def joint_angle_correlations(
     times, _ = last_touchdowns(events, leg, 2)
     z = standard_scores(model, ref)
     z = jnp.where(valid[0], z, SCORE_UNDEFINED)
+    # the mean cycle of the last MEAN_CYCLES (those that exist), as a gait lab averages strides
+    many, ok = gait_cycle_curves(
+        trace, events, ang, ref.gait_cycle_pct, leg=leg, n_cycles=MEAN_CYCLES
+    )
+    w = ok.astype(many.dtype)[:, None, None]
+    mean_curve = jnp.sum(many * w, axis=0) / jnp.maximum(jnp.sum(w, axis=0), 1.0)
+    r_mc = jnp.where(valid[0], pearson(mean_curve, human), CORR_UNDEFINED)
+    z_mc = jnp.where(valid[0], standard_scores(mean_curve, ref), SCORE_UNDEFINED)
     return {
+        "mean_cycle_corr_hip": r_mc[0],
+        "mean_cycle_corr_knee": r_mc[1],
+        "mean_cycle_corr_ankle": r_mc[2],
+        "mean_cycle_standard_score": jnp.mean(z_mc),
+        "n_mean_cycles": jnp.sum(ok.astype(jnp.int32)),
         "standard_score_hip": z[0],
         "standard_score_knee": z[1],
         "standard_score_ankle": z[2],
@@ -518,6 +543,9 @@ def compute_measures(
       * ``c_angles``, ``corr_hip``, ``corr_knee``, ``corr_ankle`` [-], ``cycle_valid``,
         ``cycle_angles_deg`` (N, 3) [deg], ``cycle_start_s``, ``cycle_end_s`` [s]: see
         :func:`joint_angle_correlations` (right leg, last full cycle).
+      * ``mean_cycle_corr_hip``, ``mean_cycle_corr_knee``, ``mean_cycle_corr_ankle``,
+        ``mean_cycle_standard_score`` [-], ``n_mean_cycles``: the same of the mean curve of
+        the last :data:`MEAN_CYCLES` full cycles (:func:`joint_angle_correlations`).
     """
     ref = refdata.winter_walking_kinematics() if reference is None else reference
     return _compute_measures(trace, events, summary, ref, int(skip))
