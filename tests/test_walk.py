@@ -80,14 +80,16 @@ def test_fbl_ankle_humanlike_walks_20s_more_like_winter():
 @pytest.mark.slow
 def test_fblplus_humanlike_walks_20s_with_low_peaks_and_angles_like_winter():
     """The FBL+ human-like preset walks 20 s near 1.3 m/s with no stance GRF peak above 1.4 BW,
-    its vertical GRF and every joint's angle correlating with Winter's, and an ankle above
-    fbl_ankle_humanlike's 0.79 (experiments/humanlike/README.md: 60 s figures)."""
+    its vertical GRF and every joint's angle correlating with Winter's, an ankle above
+    fbl_ankle_humanlike's 0.79, and a human's energy per metre (about 210 J/m; fbl_walk
+    spends 323) (experiments/humanlike/README.md: 60 s figures)."""
     model, vec, _ = load_preset("fblplus_humanlike")
     assert model == "fblplus"
     m = _walk(vec, 20.0, model=model)
     assert not m["fell"] and 1.2 <= m["mean_speed_mps"] <= 1.4
     assert m["grf_peak_max_bw"] < 1.4 and m["grf_corr"] > 0.9
     assert min(m["corr_hip"], m["corr_knee"]) > 0.85 and m["corr_ankle"] > 0.85
+    assert m["energy_J_per_m"] < 230.0
 
 
 @pytest.mark.slow
