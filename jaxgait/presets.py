@@ -151,14 +151,16 @@ def _register_network(doc: dict, model: str, where: str) -> None:
     table = doc.get("table", "fbl")
     if auto is not None and net.base != "fbl":
         raise PresetError(f"{where}: automatic speed control drives FBL networks only")
+    from jaxgait.control.autopilot import AUTO_SPEED, AUTO_SPEED_NET
+
     want = net.base
     if auto is not None:
-        want = "auto_speed_net" if _network_in_table(auto, where) else "auto_speed"
+        want = AUTO_SPEED_NET if _network_in_table(auto, where) else AUTO_SPEED.name
     if table != want:
         raise PresetError(
             f"{where}: a network model on {net.base!r} drives the table {net.base!r} (its "
-            f"automatic speed control the 'auto_speed' table, or 'auto_speed_net' with "
-            f"autopilot.network_in_table), not {table!r}"
+            f"automatic speed control the {AUTO_SPEED.name!r} table, or {AUTO_SPEED_NET!r} "
+            f"with autopilot.network_in_table), not {table!r}"
         )
     ctrl = spinal_controller(net)
     if auto is not None:

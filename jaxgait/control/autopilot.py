@@ -104,6 +104,8 @@ AUTO_SPEED = ParamTable(
 
 #: prefix of the network's own parameters in a table that holds them (:func:`law_table`)
 NET_PREFIX = "net_"
+#: name of the table of the law and its network's parameters (:func:`law_table`)
+AUTO_SPEED_NET = AUTO_SPEED.name + "_net"
 
 
 def law_table(inner_table: ParamTable) -> ParamTable:
@@ -116,7 +118,7 @@ def law_table(inner_table: ParamTable) -> ParamTable:
         )
         for s in inner_table.specs
     )
-    return ParamTable(AUTO_SPEED.name + "_net", AUTO_SPEED.specs + net)
+    return ParamTable(AUTO_SPEED_NET, AUTO_SPEED.specs + net)
 
 
 V_TARGET = Command("v_target", 1.3, "m/s", "target walking speed", 0.2, 3.0)

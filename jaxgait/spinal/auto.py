@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxgait import models, sim
-from jaxgait.control.autopilot import AUTO_SPEED, NET_PREFIX
+from jaxgait.control.autopilot import AUTO_SPEED, AUTO_SPEED_NET, NET_PREFIX
 from jaxgait.control.commands import schedule
 from jaxgait.presets import load_preset, preset_from_dict
 from jaxgait.spinal.record import SpinalError
@@ -50,18 +50,14 @@ def _auto_preset(network_preset, name, gains, network_in_table) -> dict:
         if network_in_table and not doc["autopilot"].get("network_in_table", False):
             return _network_into_table(doc, name, gains)
         raise SpinalError(f"{network_preset}: already has an automatic controller")
-    g = dict(zip(AUTO_SPEED.names, map(float, AUTO_SPEED.init), strict=True))
-    unknown = sorted(set(gains or {}) - set(g))
-    if unknown:
-        raise SpinalError(f"unknown speed-law gains {unknown}; known: {list(g)}")
-    g.update({k: float(v) for k, v in (gains or {}).items()})
+    g = _with_gains(dict(zip(AUTO_SPEED.names, map(float, AUTO_SPEED.init), strict=True)), gains)
     base = dict(zip(models.get_model(model).table.names, map(float, vec), strict=True))
     auto = {"law": "speed", "base_params": base, "source": str(network_preset)}
     table = AUTO_SPEED.name
     if network_in_table:
         g.update({NET_PREFIX + k: v for k, v in base.items()})
         auto["network_in_table"] = True
-        table = AUTO_SPEED.name + "_net"
+        table = AUTO_SPEED_NET
     return {
         "model": name,
         "table": table,
@@ -72,19 +68,23 @@ def _auto_preset(network_preset, name, gains, network_in_table) -> dict:
     }
 
 
-def _network_into_table(doc: dict, name: str, gains: dict | None) -> dict:
-    """An automatic-control preset with its network's parameters moved into its table."""
-    g = dict(doc["params"])
+def _with_gains(g: dict, gains: dict | None) -> dict:
+    """The law's gains ``g`` with the requested ``gains`` replacing theirs (names checked)."""
     unknown = sorted(set(gains or {}) - set(g))
     if unknown:
         raise SpinalError(f"unknown speed-law gains {unknown}; known: {list(g)}")
-    g.update({k: float(v) for k, v in (gains or {}).items()})
+    return {**g, **{k: float(v) for k, v in (gains or {}).items()}}
+
+
+def _network_into_table(doc: dict, name: str, gains: dict | None) -> dict:
+    """An automatic-control preset with its network's parameters moved into its table."""
+    g = _with_gains(dict(doc["params"]), gains)
     auto = dict(doc["autopilot"], network_in_table=True)
     g.update({NET_PREFIX + k: float(v) for k, v in auto["base_params"].items()})
     return {
         **doc,
         "model": name,
-        "table": AUTO_SPEED.name + "_net",
+        "table": AUTO_SPEED_NET,
         "params": g,
         "autopilot": auto,
     }

@@ -70,8 +70,9 @@ flat ground and 120 m on the perturbed environments, entrance conditions of Tabl
   swing foot is ahead of the CoM) extend the knee before landing; GRF-peak weight 30, energy
   0.04 per J/m and 10 x -(Wang's standard score), from ``fblplus_humanlike_start``
   (``fbl_humanlike`` lifted to FBL+ with a gentle VAS swing-end PD).  The shipped preset
-  ``fblplus_humanlike`` is its best continued for 150 iterations with the energy weight 0.1
-  (experiments/humanlike/README.md).
+  ``fblplus_humanlike`` is its best continued in two more stages: 150 iterations with the
+  energy weight 0.1, then 450 with 0.3 and the mean cycle's correlations held above 0.915
+  (``corr_floor``; experiments/humanlike/README.md).
 * fblplus_run: exp5's stages (thesis 3.3.1) found a fast walk (2.37 m/s over 60 s, double
   stance 0.11 of the time, no flight: experiments/full/exp5, shipped as ``fblplus_fastwalk``),
   because nothing in them asks for flight.  This CMA-ES search (16 x 150, 20 s rollouts,

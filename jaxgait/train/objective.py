@@ -58,12 +58,10 @@ flight fraction x duration [s] (fallen or not), for running; the human-likeness 
 ``corr_hip``, ``corr_knee``, ``corr_ankle`` (each joint's correlation; ``angles`` is their
 minimum; ``mean_cycle_corr_*`` the same of the mean of the last cycles), ``corr_floor``
 (-(sum of the mean cycle's three and ``grf_corr``'s shortfalls below :data:`CORR_FLOOR`), a
-hinge constraint), ``rom`` (-(|knee| + |ankle| range-of-motion
-difference from Winter's) / 10 deg) and
-``standard_score`` (-(Wang's Table 1 standard score), the mean over hip, knee and ankle,
-capped at :data:`STANDARD_SCORE_CAP`; ``mean_cycle_standard_score`` of the mean cycle)
-with its per-joint ``standard_score_hip``,
-``standard_score_knee``, ``standard_score_ankle``.
+hinge constraint), ``rom`` (-(|knee| + |ankle| range-of-motion difference from Winter's) /
+10 deg) and ``standard_score`` (-(Wang's Table 1 standard score), the mean over hip, knee and
+ankle, capped at :data:`STANDARD_SCORE_CAP`; ``mean_cycle_standard_score`` of the mean cycle)
+with its per-joint ``standard_score_hip``, ``standard_score_knee``, ``standard_score_ankle``.
 """
 
 from __future__ import annotations
