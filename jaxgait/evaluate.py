@@ -62,7 +62,7 @@ from jaxgait.evaluation import (  # noqa: F401 - the Python API, re-exported
     _taga_env,
     env_config,
     evaluate,
-    reference_kinematics,
+    reference_data,
     run,
     taga_report,
 )
@@ -384,7 +384,8 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
                     result.model,
                     terrain=result.env.terrain,
                     measures_dict=result.measures,
-                    reference=reference_kinematics(a.reference),
+                    reference=reference_data(a.reference)[0],
+                    grf_reference=reference_data(a.reference)[1],
                 )
                 rep["plot_files"] = {k: str(v) for k, v in paths.items()}
             if a.save_scene is not None:

@@ -65,19 +65,17 @@ def _load(preset) -> tuple[str, np.ndarray, dict, str, str]:
     return model, vec, doc, str(preset), str(path)
 
 
-#: Human joint-angle references of :func:`run` (``reference=``).
+#: Human gait references of :func:`run` (``reference=``).
 REFERENCES = ("walking", "running")
 
 
-def reference_kinematics(name: str):
-    """The human joint angles named ``name`` (:data:`REFERENCES`)."""
+def reference_data(name: str):
+    """``(Kinematics, VerticalGRF)`` of the human gait named ``name`` (:data:`REFERENCES`)."""
     from jaxgait.analysis import refdata
 
-    if name == "walking":
-        return refdata.winter_walking_kinematics()
-    if name == "running":
-        return refdata.running_kinematics()
-    raise EvaluateError(f"unknown reference {name!r}; valid: {', '.join(REFERENCES)}")
+    if name not in REFERENCES:
+        raise EvaluateError(f"unknown reference {name!r}; valid: {', '.join(REFERENCES)}")
+    return refdata.gait_reference(name)
 
 
 def _check_log_dt(log_dt, dt: float) -> float:
@@ -198,8 +196,8 @@ def run(
         ``train`` for its best), else :attr:`jaxgait.sim.SimConfig.v0` (1.3).  The start
         posture is the preset's ``pose`` entry (a key of :data:`jaxgait.sim.POSES`), else
         Geyer's.
-      reference: human joint angles the correlations and standard scores compare with:
-        ``"walking"`` (Winter, 1.33 m/s) or ``"running"`` (Fukuchi, 3.5 m/s).
+      reference: human gait the joint-angle correlations, standard scores and ``grf_corr``
+        compare with: ``"walking"`` (Winter, 1.33 m/s) or ``"running"`` (Fukuchi, 3.5 m/s).
       log_dt: interval of the logged trajectory [s], a whole multiple of the physics step
         (default :attr:`jaxgait.sim.SimConfig.log_dt`, 10 ms); the per-stance GRF peaks are
         measured at the physics step whatever it is.
@@ -219,7 +217,7 @@ def run(
     from jaxgait.world import envs
 
     _check_inputs(env, duration, seed)
-    ref = reference_kinematics(reference)
+    ref, grf_ref = reference_data(reference)
     declared, vec, doc, label, file = _load(preset)
     name = _choose_model(model, declared, label)
     if name in models.model_names("taga"):
@@ -247,7 +245,7 @@ def run(
     environment = envs.make_env(env_cfg, jax.random.PRNGKey(int(seed)))
     params = mdl.table.as_jnp(vec)
     trace, events, summary, final = _jit_rollout(name, cfg)(params, environment)
-    meas = compute_measures(trace, events, summary, reference=ref)
+    meas = compute_measures(trace, events, summary, reference=ref, grf_reference=grf_ref)
     to_np = lambda tree: jax.tree.map(np.asarray, tree)
     meas, trace, events, summary = to_np(meas), to_np(trace), to_np(events), to_np(summary)
     rep = _report(meas, label=label, file=file, model=name, env=env, seed=seed, duration=duration)

@@ -38,6 +38,7 @@ import numpy as np
 from jaxgait import models
 from jaxgait.control.fblankle import FBL_ANKLE, lift_fbl_ankle
 from jaxgait.control.fblplus import FBLPLUS, lift_fbl
+from jaxgait.control.fblplus_bal import FBLPLUS_BAL, lift_fblplus
 from jaxgait.control.network_json import network_from_dict
 from jaxgait.control.spinal import NetworkError, spinal_controller
 from jaxgait.core.params import ParamTable, save_preset
@@ -356,12 +357,14 @@ def load_preset(name_or_path: str | Path) -> tuple[str, np.ndarray, dict]:
     return preset_from_dict(doc, where=str(path))
 
 
-#: Models that extend FBL with neutral extras: model -> (table, lift function, description
-#: of the neutral extras).  A neutral preset of one walks like its FBL source (module
-#: docstrings: FBL+ bit for bit, fbl_ankle to float32 rounding).
+#: Models that extend another with neutral extras: model -> (table, source model, lift
+#: function, description of the neutral extras).  A neutral preset of one walks like its
+#: source (module docstrings: FBL+ bit for bit, fbl_ankle and fblplus_bal to float32
+#: rounding).
 _NEUTRAL_LIFTS = {
     "fblplus": (
         FBLPLUS,
+        "fbl",
         lift_fbl,
         "FBL+ walking on flat ground (thesis 2.1.3): the FBL walking preset {source} with the "
         "10 extra FBL+ parameters neutral: swing-end PD gains kp/kd of HFL, GLU and VAS = 0, "
@@ -372,36 +375,51 @@ _NEUTRAL_LIFTS = {
     ),
     "fbl_ankle": (
         FBL_ANKLE,
+        "fbl",
         lift_fbl_ankle,
         "fbl_ankle (jaxgait.control.fblankle): the FBL walking preset {source} with the 3 "
         "ankle extras neutral: swing SOL and GAS drive k_sw = 1 (FBL's S0) and no TA "
         "foot-lowering damping (G_TA_v = 0).  The same law as FBL's: it walks like the source "
         "preset, to float32 rounding.",
     ),
+    "fblplus_bal": (
+        FBLPLUS_BAL,
+        "fblplus",
+        lift_fblplus,
+        "fblplus_bal (jaxgait.control.fblplus_bal): the FBL+ preset {source} with SIMBICON's "
+        "foot-placement gains c_d = c_v = 0, so the swing-end hip target is FBL+'s.  It "
+        "moves like the source preset, to float32 rounding.",
+    ),
 }
 
 
 def write_neutral_preset(src, dst, model: str = "fblplus") -> np.ndarray:
-    """Write the ``model`` preset ``dst`` made of the FBL preset ``src`` and neutral extras.
+    """Write the ``model`` preset ``dst`` made of the preset ``src`` and neutral extras.
 
-    ``model`` is ``"fblplus"`` (see "Reduction to FBL" in :mod:`jaxgait.control.fblplus`) or
-    ``"fbl_ankle"`` (:mod:`jaxgait.control.fblankle`); the result walks like ``src`` (FBL+:
-    bit for bit; fbl_ankle: to float32 rounding), which is anything :func:`load_preset`
-    accepts.  Returns the vector.
+    ``model`` is ``"fblplus"`` (``src`` an FBL preset; see "Reduction to FBL" in
+    :mod:`jaxgait.control.fblplus`), ``"fbl_ankle"`` (FBL source,
+    :mod:`jaxgait.control.fblankle`) or ``"fblplus_bal"`` (FBL+ source,
+    :mod:`jaxgait.control.fblplus_bal`); the result moves like ``src`` (FBL+: bit for bit;
+    the others to float32 rounding), which is anything :func:`load_preset` accepts.
+    Returns the vector.
     """
     if model not in _NEUTRAL_LIFTS:
         raise ValueError(f"no neutral lift to model {model!r}; known: {', '.join(_NEUTRAL_LIFTS)}")
-    table, lift, text = _NEUTRAL_LIFTS[model]
+    table, needed, lift, text = _NEUTRAL_LIFTS[model]
     path = resolve_preset(src)
-    src_model, vec, _ = load_preset(path)
-    if src_model != "fbl":
-        raise ValueError(f"{path}: an FBL preset is needed, this one is for model {src_model!r}")
+    src_model, vec, src_doc = load_preset(path)
+    if src_model != needed:
+        raise ValueError(
+            f"{path}: a {needed!r} preset is needed for {model!r}, this one is for model "
+            f"{src_model!r}"
+        )
     try:
         source = path.resolve().relative_to(Path.cwd().resolve()).as_posix()
     except ValueError:
         source = str(path)
     lifted = lift(vec)
     table.check(lifted, where=str(dst))
+    start = {k: src_doc[k] for k in ("v0", "pose") if k in src_doc}  # the source's start
     save_preset(
         Path(dst),
         model,
@@ -410,5 +428,6 @@ def write_neutral_preset(src, dst, model: str = "fblplus") -> np.ndarray:
         description=text.format(source=source),
         source=source,
         extras_neutral=True,
+        **start,
     )
     return lifted

@@ -454,22 +454,28 @@ def test_a_preset_starts_in_its_own_pose_and_an_unknown_pose_is_refused():
 
 
 def test_plots_draw_the_reference_the_correlations_use(e2e, tmp_path, monkeypatch, capsys):
-    """``--reference running --plots``: the joint-angle figure draws Fukuchi's running curves,
-    the ones its title's correlations were computed against."""
+    """``--reference running --plots``: the joint-angle and GRF figures draw Fukuchi's running
+    curves, the ones the correlations (and grf_corr) were computed against."""
     from jaxgait.analysis import plots, refdata
 
     seen = {}
-    real = plots.plot_joint_angles
+    real, real_grf = plots.plot_joint_angles, plots.plot_grf
 
     def spy(*args, **kw):
         seen["reference"] = kw.get("reference")
         return real(*args, **kw)
 
+    def spy_grf(*args, **kw):
+        seen["grf"] = kw.get("reference")
+        return real_grf(*args, **kw)
+
     monkeypatch.setattr(plots, "plot_joint_angles", spy)
+    monkeypatch.setattr(plots, "plot_grf", spy_grf)
     _, _, d = e2e
     argv = [str(d / "init.json"), "--json", "--duration", "0.3", "--plots", str(tmp_path)]
     assert ev.main([*argv, "--reference", "running"]) == 0
     capsys.readouterr()
     running = refdata.running_kinematics()
     np.testing.assert_array_equal(seen["reference"].mean_deg, running.mean_deg)
+    np.testing.assert_array_equal(seen["grf"].mean_bw, refdata.running_grf().mean_bw)
     assert (tmp_path / "joint_angles.png").is_file()

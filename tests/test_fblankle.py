@@ -165,5 +165,5 @@ def test_shipped_start_is_fbl_humanlike_with_neutral_extras(tmp_path):
     np.testing.assert_array_equal(again, vec)
     with pytest.raises(ValueError, match="no neutral lift to model 'wang8'"):
         write_neutral_preset("fbl_walk", tmp_path / "b.json", model="wang8")
-    with pytest.raises(ValueError, match="an FBL preset is needed"):
+    with pytest.raises(ValueError, match="a .fbl. preset is needed"):
         write_neutral_preset("fbl_ankle_walk", tmp_path / "c.json", model="fbl_ankle")

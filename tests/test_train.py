@@ -253,6 +253,33 @@ def test_start_pose_is_written_only_when_not_geyers_and_reaches_the_simulator():
     assert PopulationEvaluator(run).sim_cfg.pose == "run"
 
 
+def test_reference_is_written_only_when_not_walking_and_scores_against_it():
+    """``reference="running"``: the config says so (and only then), and the evaluator's
+    grf_corr criterion is the rollout's vertical GRF against Fukuchi's running curve, the
+    same figure ``compute_measures`` gives with that reference."""
+    from jaxgait.analysis import refdata
+    from jaxgait.analysis.measures import compute_measures
+    from jaxgait.train.evaluator import PopulationEvaluator
+
+    base = tiny("quickstart", duration=3.0, weights={"grf_corr": 1.0}, stages=(), lanes=0)
+    assert "reference" not in base.to_dict()
+    run = base.replace(reference="running")
+    assert run.to_dict()["reference"] == "running"
+    assert Experiment.from_dict(run.to_dict()) == run
+    _, vec, _ = load_preset("fbl_walk")
+    params = jnp.asarray(np.stack([vec, vec]), jnp.float32)
+    keys = jax.random.split(jax.random.PRNGKey(0), 2)
+    got = {}
+    for name, exp in (("walking", base), ("running", run)):
+        ev = PopulationEvaluator(exp)
+        _, value, _, first = ev.scores(params, keys, keep_first=True)
+        kin, grf = refdata.gait_reference(name)
+        m = compute_measures(*first, reference=kin, grf_reference=grf)
+        assert float(value[0]) == pytest.approx(float(m["grf_corr"]), abs=1e-6)
+        got[name] = float(value[0])
+    assert -1.0 <= got["running"] < got["walking"] - 0.05  # a walking GRF fits Winter's
+
+
 def test_cli_resume_iterations_extends(tmp_path, capsys):
     out = str(tmp_path / "run")
     base = ["quickstart", "--particles", "4", "--duration", "1", "--set", "batch_size=4"]
@@ -415,6 +442,7 @@ def test_unknown_experiment_and_fields_list_the_valid_ones():
         ({"targets": {"v_wanted": 1.0}}, "unknown target"),
         ({"optimiser_options": {"c3": 1.0}}, "optimiser_options"),
         ({"pose": "crouch"}, "invalid pose='crouch': must be one of geyer, run, thatte"),
+        ({"reference": "jog"}, "invalid reference='jog': must be one of walking, running"),
     ],
 )
 def test_out_of_range_overrides(override, msg):

@@ -480,6 +480,7 @@ def compute_measures(
     summary: Summary,
     *,
     reference: refdata.Kinematics | None = None,
+    grf_reference: refdata.VerticalGRF | None = None,
     skip: int = 2,
 ) -> dict[str, jax.Array]:
     """All gait measures of one rollout (SPEC §3; thesis 2.2.2, Table 2.7).
@@ -488,6 +489,8 @@ def compute_measures(
       trace, events, summary: the rollout record (one individual; ``vmap`` for a batch).
       reference: human joint-angle curves for the correlations (static); default Winter
         normal walking (:func:`jaxgait.analysis.refdata.winter_walking_kinematics`).
+      grf_reference: human vertical GRF for ``grf_corr`` (static); default Winter's walking
+        (:func:`jaxgait.analysis.refdata.gait_reference` gives both of one gait).
       skip: leading touchdown events ignored as start-up transients for the step-length,
         cycle-frequency and double-stance measures (static).
 
@@ -531,7 +534,7 @@ def compute_measures(
       * ``grf_peak_max_bw``, ``grf_peak_mean_bw`` [BW], ``grf_peak_time_mean_s`` [s],
         ``grf_loading_rate_max_bw_s`` [BW/s], ``n_stances_measured``: per-stance vertical
         GRF peaks at the physics step, :func:`stance_grf_peaks`.
-      * ``grf_corr`` [-]: the right vertical GRF over the last full cycle against Winter's;
+      * ``grf_corr`` [-]: the right vertical GRF over the last full cycle against ``grf_reference``;
         ``rom_hip_deg``, ``rom_knee_deg``, ``rom_ankle_deg`` [deg] the ranges of motion over
         that cycle and ``rom_hip_diff_deg``, ``rom_knee_diff_deg``, ``rom_ankle_diff_deg``
         [deg] minus the reference's (:func:`human_likeness`).
@@ -548,11 +551,12 @@ def compute_measures(
         the last :data:`MEAN_CYCLES` full cycles (:func:`joint_angle_correlations`).
     """
     ref = refdata.winter_walking_kinematics() if reference is None else reference
-    return _compute_measures(trace, events, summary, ref, int(skip))
+    grf = refdata.winter_walking_grf() if grf_reference is None else grf_reference
+    return _compute_measures(trace, events, summary, ref, grf, int(skip))
 
 
-@functools.partial(jax.jit, static_argnums=(3, 4))
-def _compute_measures(trace, events, summary, reference, skip):
+@functools.partial(jax.jit, static_argnums=(3, 4, 5))
+def _compute_measures(trace, events, summary, reference, grf_reference, skip):
     f = trace.t.dtype
     duration = summary.duration.astype(f)
     distance = summary.distance.astype(f)
@@ -636,7 +640,13 @@ def _compute_measures(trace, events, summary, reference, skip):
     out.update(stance_grf_peaks(events, mass * G, skip))
     out.update(
         human_likeness(
-            trace, events, mass * G, out["cycle_angles_deg"], out["cycle_valid"], reference
+            trace,
+            events,
+            mass * G,
+            out["cycle_angles_deg"],
+            out["cycle_valid"],
+            reference,
+            grf_reference,
         )
     )
     return out

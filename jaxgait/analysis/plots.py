@@ -518,6 +518,7 @@ def plot_all(
     measures_dict: dict | None = None,
     n_cycles: int = 5,
     reference: refdata.Kinematics | None = None,
+    grf_reference: refdata.VerticalGRF | None = None,
 ) -> dict[str, Path]:
     """Write ``joint_angles.png``, ``grf.png``, ``activations.png`` and ``stick_figure.png``.
 
@@ -532,6 +533,7 @@ def plot_all(
       n_cycles: number of last cycles averaged in the cycle figures.
       reference: human joint angles drawn in ``joint_angles.png`` (default Winter's walking);
         pass the reference ``measures_dict``'s correlations were computed against.
+      grf_reference: human vertical GRF drawn in ``grf.png`` (default Winter's walking).
 
     Returns:
       Figure name -> path written.
@@ -549,7 +551,9 @@ def plot_all(
             correlations=measures_dict,
             reference=reference,
         ),
-        "grf": plot_grf(out / "grf.png", trace, events, mass, n_cycles=n_cycles),
+        "grf": plot_grf(
+            out / "grf.png", trace, events, mass, n_cycles=n_cycles, reference=grf_reference
+        ),
         "activations": plot_activations(
             out / "activations.png", trace, events, names, n_cycles=n_cycles
         ),

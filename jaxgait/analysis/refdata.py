@@ -332,6 +332,20 @@ def _running_grf(data_dir: Path) -> VerticalGRF:
     return VerticalGRF(*arrays, source=RUN_GRF_FILE)
 
 
+#: Names of the human gait references (joint angles and vertical GRF together).
+GAIT_REFERENCES = ("walking", "running")
+
+
+def gait_reference(name: str) -> tuple[Kinematics, VerticalGRF]:
+    """The joint angles and vertical GRF of the human gait ``name``: ``"walking"`` (Winter
+    1991, 1.33 m/s) or ``"running"`` (Fukuchi et al. 2017, 3.5 m/s)."""
+    if name == "walking":
+        return winter_walking_kinematics(), winter_walking_grf()
+    if name == "running":
+        return running_kinematics(), running_grf()
+    raise ValueError(f"unknown gait reference {name!r}; valid: {', '.join(GAIT_REFERENCES)}")
+
+
 def _emg(data_dir: Path, fname: str, mapping: dict, suffix: str) -> Emg:
     t = _read_table(data_dir, fname)
     pct = _cycle_axis(t)

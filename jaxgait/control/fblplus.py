@@ -89,6 +89,7 @@ from jaxgait.control.fbl import (
     VAS,
     fbl_stimulation,
     lift_with_extras,
+    packed_sensors,
     reflex_controller,
     reflex_step,
 )
@@ -220,11 +221,11 @@ def fblplus_stimulation(p: dict, s: jax.Array) -> jax.Array:
     return jnp.where(swing_end[:, None], stim + swing_end_pd(p, s), stim)
 
 
-def fblplus_step(ctrl, p: dict, sens, lines, command: dict, dt):
+def fblplus_step(ctrl, p: dict, sens, lines, command: dict, dt, pack=packed_sensors):
     """FBL+ step: FBL's reflex step with the ``hip_target_offset`` command [rad] added to the
-    swing-end hip target delta_hip_ref."""
+    swing-end hip target delta_hip_ref (``pack``: the sensor packing, FBL's by default)."""
     p = {**p, "delta_hip_ref": p["delta_hip_ref"] + command["hip_target_offset"]}
-    return reflex_step(ctrl, p, sens, lines, command, dt)
+    return reflex_step(ctrl, p, sens, lines, command, dt, pack=pack)
 
 
 #: FBL+ command: an offset of the swing-end hip target (foot placement before landing).

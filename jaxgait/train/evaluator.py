@@ -95,13 +95,18 @@ def _batched_rollout(model_name: str, cfg):
     return jax.jit(run)
 
 
-def _score_fn(objective):
+def _score_fn(objective, reference: str = "walking"):
     """``(trace, events, summary, max_stage) -> (stage, value, valid, distance, duration)``
-    of a batch of rollouts (leading axis) for ``objective``: their measures, validity,
+    of a batch of rollouts (leading axis) for ``objective``: their measures (against the
+    human gait ``reference``, :func:`jaxgait.analysis.refdata.gait_reference`), validity,
     fitness, and the distance [m] and time [s] walked."""
     from jaxgait.analysis.measures import compute_measures
+    from jaxgait.analysis.refdata import gait_reference
 
-    measure = jax.vmap(functools.partial(compute_measures, skip=2))
+    kin, grf = gait_reference(reference)
+    measure = jax.vmap(
+        functools.partial(compute_measures, reference=kin, grf_reference=grf, skip=2)
+    )
 
     def score(trace, events, summary, max_stage):
         m = measure(trace, events, summary)
@@ -122,13 +127,15 @@ def worst_rows(stage: np.ndarray, value: np.ndarray) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=32)
-def _scorer(objective):
+def _scorer(objective, reference: str = "walking"):
     """jit: rollouts -> (stage (B,), value (B,), valid (B,)) for ``objective`` (hashable)."""
-    return jax.jit(_score_fn(objective))
+    return jax.jit(_score_fn(objective, reference))
 
 
 @functools.lru_cache(maxsize=16)
-def _lane_scorer(model_name: str, cfg, objective, lanes: int, mesh: Mesh, drain=()):
+def _lane_scorer(
+    model_name: str, cfg, objective, lanes: int, mesh: Mesh, drain=(), reference="walking"
+):
     """jit: one queue of rollouts per device -> per rollout (stage, value, valid), lane counts.
 
     ``run(params (G, Q, D), env (G, Q), max_stage (G, Q), d_lim, v0)``: each of the G groups
@@ -142,7 +149,7 @@ def _lane_scorer(model_name: str, cfg, objective, lanes: int, mesh: Mesh, drain=
     from jaxgait.sim.lanes import lane_rollouts
 
     model = get_model(model_name)
-    finish = _score_fn(objective)
+    finish = _score_fn(objective, reference)
 
     def one_device(params, env, max_stage, d_lim, v0):
         c = dataclasses.replace(cfg, d_lim=d_lim, v0=v0)
@@ -232,7 +239,7 @@ class PopulationEvaluator:
         self.env_cfg = exp.env_config()
         self.objective = exp.objective()
         self.rollout = _batched_rollout(exp.model, self.sim_cfg)
-        self.score = _scorer(self.objective)
+        self.score = _scorer(self.objective, exp.reference)
         #: rollouts per device call: every call has this shape, so one compilation serves
         #: the iterations and the final evaluation.
         n = n_runs * exp.particles * exp.worst_of_k
@@ -245,7 +252,13 @@ class PopulationEvaluator:
             #: the queue's settings: :attr:`sim_cfg` in chunks of :data:`QUEUE_CHUNK_S`
             self.lane_cfg = dataclasses.replace(self.sim_cfg, chunk_s=QUEUE_CHUNK_S)
             self.lane_score = _lane_scorer(
-                exp.model, self.lane_cfg, self.objective, self.lanes, self.mesh, self.drain
+                exp.model,
+                self.lane_cfg,
+                self.objective,
+                self.lanes,
+                self.mesh,
+                self.drain,
+                exp.reference,
             )
         #: lane counts (:class:`~jaxgait.sim.lanes.LaneStats`, summed over devices) of the
         #: last evaluation: of the queue, or of the direct calls (whose lanes idle from the end

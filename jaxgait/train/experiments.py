@@ -116,6 +116,7 @@ from pathlib import Path
 from typing import Any
 
 from jaxgait import models
+from jaxgait.analysis.refdata import GAIT_REFERENCES
 from jaxgait.core.limits import LimitError, check_distance, check_duration
 from jaxgait.sim.model import POSES
 
@@ -213,6 +214,10 @@ class Experiment:
         stay up in the final evaluation's batch (:func:`jaxgait.train.results.confirm_walk`),
         so the best is not a gait that walks by the grace of float32 rounding; one extra
         call per such candidate.  Written to the config only when true.
+      reference: the human gait the correlation and standard-score criteria (and
+        ``grf_corr``) compare with: ``"walking"`` (Winter, the default) or ``"running"``
+        (Fukuchi 3.5 m/s; :func:`jaxgait.analysis.refdata.gait_reference`).
+        Written to the config only when not walking.
     """
 
     name: str
@@ -239,6 +244,7 @@ class Experiment:
     lanes: int | None = None
     stop_speed_tol: float | None = None
     confirm_best: bool = False
+    reference: str = "walking"
 
     def __post_init__(self):
         s = lambda k, v: object.__setattr__(self, k, v)
@@ -295,6 +301,10 @@ class Experiment:
         if self.pose not in POSES:
             raise ExperimentError(
                 f"invalid pose={self.pose!r}: must be one of {', '.join(sorted(POSES))}"
+            )
+        if self.reference not in GAIT_REFERENCES:
+            raise ExperimentError(
+                f"invalid reference={self.reference!r}: must be one of {', '.join(GAIT_REFERENCES)}"
             )
         s("worst_of_k", _integer("worst_of_k", self.worst_of_k, 1))
         s("particles", _integer("particles", self.particles, 2))
@@ -382,6 +392,7 @@ class Experiment:
                 ("stop_speed_tol", None),
                 ("confirm_best", False),
                 ("pose", "geyer"),
+                ("reference", "walking"),
             ):
                 continue  # unset: configs written before the field existed stay equal
             if f.name in ("env_overrides", "optimiser_options", "targets", "weights"):

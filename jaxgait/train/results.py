@@ -292,6 +292,7 @@ def final_evaluation(
     (without the stage cap of the stage PSO).
     """
     from jaxgait.analysis.measures import MEASURE_UNITS, compute_measures
+    from jaxgait.analysis.refdata import gait_reference
 
     k = exp.worst_of_k
     keys = evaluation_keys(exp, state.key)
@@ -300,7 +301,9 @@ def final_evaluation(
     stages, values = stages[:k], values[:k]
     ws, wv = objective_mod.worst_of_k(jnp.asarray(stages)[None], jnp.asarray(values)[None])
     trace, events, summary = first
-    meas = jax.tree.map(np.asarray, compute_measures(trace, events, summary))
+    kin, grf = gait_reference(exp.reference)
+    meas = compute_measures(trace, events, summary, reference=kin, grf_reference=grf)
+    meas = jax.tree.map(np.asarray, meas)
     report = {k_: json_safe(v) for k_, v in meas.items() if np.ndim(v) == 0}
     report["units"] = {k_: MEASURE_UNITS.get(k_, "") for k_ in report}
     report.update(
@@ -344,6 +347,8 @@ def final_evaluation(
             evaluator.model,
             terrain=jax.tree.map(np.asarray, env.terrain),
             measures_dict=meas,
+            reference=kin,
+            grf_reference=grf,
         )
         files.update({f"plot_{n}": p for n, p in figs.items()})
     return report, files
