@@ -229,3 +229,23 @@ def test_weight_support_carries_its_share_of_the_body_weight():
             E.get_env_config("weight_support", fraction=bad)
     with pytest.raises(ValueError, match="mass"):
         E.get_env_config("weight_support", mass=0.0)
+
+
+def test_fading_weight_support_falls_linearly_to_none():
+    """``fade_s`` = 8 s, 20 %: 16 steps of 0.5 s whose forces follow the line from 156.96 N
+    at t = 0 to 0 at 8 s at each step's middle (step 0: 152.05 N, step 15: 4.91 N); nothing
+    from 8 s on; the same total impulse as the line (627.8 N s)."""
+    cfg = E.get_env_config("weight_support", fraction=0.2, fade_s=8.0)
+    env = E.make_env(cfg, jax.random.key(0))
+    full = 0.2 * 80.0 * 9.81
+    for t, want in ((0.0, full * 31 / 32), (0.49, full * 31 / 32), (0.5, full * 29 / 32),
+                    (7.99, full / 32), (8.0, 0.0), (20.0, 0.0)):  # fmt: skip
+        fx, fz, _ = push_force(env.pushes, t)
+        assert float(fz) == pytest.approx(want, rel=1e-5, abs=1e-3), t
+        assert float(fx) == pytest.approx(0.0, abs=1e-3)
+    p = env.pushes
+    impulse = float(jnp.sum(p.magnitude * p.duration))
+    assert impulse == pytest.approx(full * 8.0 / 2, rel=1e-6)
+    assert int(jnp.count_nonzero(p.magnitude)) == E.FADE_STEPS
+    with pytest.raises(ValueError, match="fade_s"):
+        E.get_env_config("weight_support", fade_s=-1.0)

@@ -57,6 +57,9 @@ G = 9.81
 SUPPORT_DURATION_S = 1.0e6
 """How long the support of ``weight_support`` acts [s]: longer than any rollout."""
 
+#: Steps of a fading support (``WeightSupportEnv.fade_s``), one push slot each.
+FADE_STEPS = 16
+
 DEFAULT_N_PUSHES = 128
 """Default push capacity P: 128 random pushes last ~160 s on average (1.25 s per push+pause),
 more than a 120 m walk at 1.3 m/s (~92 s, thesis 3.2)."""
@@ -290,20 +293,30 @@ class WeightSupportEnv(EnvConfig):
     cheap, and lower the support stage by stage (``experiments/running``).  Not a thesis
     environment.
 
+    With ``fade_s`` > 0 the support fades out within the rollout: it falls linearly from the
+    full force at t = 0 to none at ``fade_s``, in ``min(FADE_STEPS, n_pushes)`` equal steps
+    (one push slot each, the force of step k the line's value at the step's middle), and the
+    body is on its own after ``fade_s``: a search on it rewards gaits that start under
+    support and keep going without.
+
     Attributes:
       fraction: share of the body weight carried, in [0, 1).
       mass: body mass [kg] the share is taken of (the planar body's 80 kg).
       height: point of application [m from the hip]; 0.3 m is near the trunk's centre of mass.
+      fade_s: time [s] over which the support fades to none; 0 (default): constant support.
     """
 
     fraction: float = 0.3
     mass: float = 80.0
     height: float = 0.3
+    fade_s: float = 0.0
 
     def __post_init__(self):
         super().__post_init__()
         _check(0.0 <= self.fraction < 1.0, "fraction", self.fraction, "in [0, 1)")
         _check(self.mass > 0, "mass", self.mass, "> 0 [kg]")
+        ok = isinstance(self.fade_s, (int, float)) and 0.0 <= self.fade_s < math.inf
+        _check(ok, "fade_s", self.fade_s, ">= 0 and finite [s] (0: constant support)")
 
     @property
     def force(self) -> float:
@@ -313,6 +326,17 @@ class WeightSupportEnv(EnvConfig):
     def make_pushes(self, key):
         del key
         p = Pushes.empty(self.n_pushes)
+        if self.fade_s > 0.0:
+            n = min(FADE_STEPS, self.n_pushes)
+            step = self.fade_s / n
+            k = jnp.arange(n, dtype=jnp.float32)
+            return p.replace(
+                t0=p.t0.at[:n].set(k * step),
+                duration=p.duration.at[:n].set(step),
+                magnitude=p.magnitude.at[:n].set(self.force * (1.0 - (k + 0.5) / n)),
+                angle=p.angle.at[:n].set(math.pi / 2),
+                height=p.height.at[:n].set(self.height),
+            )
         return p.replace(
             t0=p.t0.at[0].set(0.0),
             duration=p.duration.at[0].set(SUPPORT_DURATION_S),
