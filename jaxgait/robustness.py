@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import sys
 
@@ -143,6 +144,8 @@ def main(argv=None) -> int:
                 push_refine=a.push_refine,
             )
             declared, vec, doc = load_preset(a.preset)
+            # the preset's start (as evaluate): its initial speed and posture
+            rcfg = dataclasses.replace(rcfg, v0=doc.get("v0"), pose=doc.get("pose"))
             name, vec = params_for_model(declared, vec, a.model)
             model = get_model(name)
             rep = {"preset": str(a.preset), **robustness(model, vec, rcfg, tests)}

@@ -230,3 +230,31 @@ def test_push_duration_sets_the_fixed_push_and_is_checked():
     np.testing.assert_allclose(np.asarray(env.pushes.duration[:, 0]), 0.4)
     with pytest.raises(ValueError, match="push_duration=0.4 .push_env 'push' only"):
         rb.RobustnessConfig(push_duration=0.4)  # random_push draws its own durations
+
+
+def test_cli_starts_from_the_presets_speed_and_pose(tmp_path, monkeypatch, capsys):
+    """As ``evaluate``, the robustness rollouts start at the preset's ``v0`` and ``pose``
+    (a runner saved with v0 2.4 m/s must not be pushed from a 1.3 m/s start); a preset
+    without them starts at the simulator's defaults."""
+    seen = []
+
+    def spy(model, vec, rcfg, tests):
+        seen.append(rcfg)
+        return {"model": "fbl", "seeds": rcfg.seeds}
+
+    monkeypatch.setattr(robustness, "robustness", spy)
+    _, _, doc = load_preset("fbl_walk")
+    path = tmp_path / "start.json"
+    path.write_text(json.dumps({**doc, "v0": 1.1, "pose": "run"}))
+    assert robustness.main([str(path), "--json"]) == 0
+    assert robustness.main(["fbl_walk", "--json"]) == 0
+    capsys.readouterr()
+    (a, b) = seen
+    assert (a.v0, a.pose) == (1.1, "run") and (b.v0, b.pose) == (None, None)
+    cfg_a, cfg_b = rb._sim_cfg(1.0, a), rb._sim_cfg(1.0, b)
+    assert (cfg_a.v0, cfg_a.pose) == (1.1, "run")
+    assert (cfg_b.v0, cfg_b.pose) == (sim.SimConfig.v0, sim.SimConfig.pose)
+    with pytest.raises(ValueError, match="pose='crouch'"):
+        rb.RobustnessConfig(pose="crouch")
+    with pytest.raises(ValueError, match="v0=inf"):
+        rb.RobustnessConfig(v0=float("inf"))

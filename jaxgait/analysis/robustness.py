@@ -85,6 +85,11 @@ class RobustnessConfig:
       wavy_alpha_max: alpha_max of the wavy ground [rad] (default atan 0.20).
       slope_jitter: amplitude of the per-seed perturbation push on the slope [N].
       log_dt: trace period of the rollouts [s] (only the summary is used).
+      v0: initial forward speed [m/s] of every rollout; None: the simulator's default
+        (:attr:`jaxgait.sim.SimConfig.v0`).  The command passes the preset's ``v0`` entry,
+        as ``evaluate`` does.
+      pose: start posture (a key of :data:`jaxgait.sim.POSES`); None: Geyer's.  The command
+        passes the preset's ``pose`` entry.
     """
 
     seeds: int = 5
@@ -103,6 +108,8 @@ class RobustnessConfig:
     wavy_alpha_max: float = math.atan(0.20)
     slope_jitter: float = 10.0
     log_dt: float = 0.1
+    v0: float | None = None
+    pose: str | None = None
 
     def __post_init__(self):
         def need(ok, what):
@@ -130,6 +137,16 @@ class RobustnessConfig:
         need(self.duration > 0, f"duration={self.duration} (> 0 s)")
         need(0 <= self.wavy_alpha_max < math.pi / 2, f"wavy_alpha_max={self.wavy_alpha_max}")
         need(self.slope_jitter >= 0, f"slope_jitter={self.slope_jitter} (>= 0 N)")
+        need(
+            self.v0 is None
+            or (isinstance(self.v0, (int, float)) and not isinstance(self.v0, bool)
+                and math.isfinite(self.v0)),
+            f"v0={self.v0!r} (a finite speed [m/s] or None)",
+        )  # fmt: skip
+        if self.pose is not None:
+            from jaxgait.sim.model import POSES
+
+            need(self.pose in POSES, f"pose={self.pose!r} (one of {', '.join(sorted(POSES))})")
         try:
             check_duration(self.duration, what="duration of the slope walks")
             check_duration(
@@ -265,7 +282,10 @@ def _summary_fn(model, cfg):
 def _sim_cfg(duration: float, rcfg: RobustnessConfig):
     from jaxgait import sim
 
-    return sim.SimConfig(duration=float(duration), log_dt=rcfg.log_dt, chunk_s=1.0)
+    start = {} if rcfg.v0 is None else {"v0": float(rcfg.v0)}
+    if rcfg.pose is not None:
+        start["pose"] = rcfg.pose
+    return sim.SimConfig(duration=float(duration), log_dt=rcfg.log_dt, chunk_s=1.0, **start)
 
 
 def push_base_envs(rcfg: RobustnessConfig, keys: jax.Array) -> envs_mod.Env:

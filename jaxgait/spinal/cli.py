@@ -223,9 +223,10 @@ def cmd_robust(a) -> dict:
 
     rows, res = {}, {}
     for preset in a.presets:
-        name, vec, _ = load_preset(preset)
+        name, vec, doc = load_preset(preset)
         lab = label(preset)
-        rob = robustness(models.get_model(name), vec, RobustnessConfig(seeds=a.seeds, seed=a.seed))
+        rcfg = RobustnessConfig(seeds=a.seeds, seed=a.seed, v0=doc.get("v0"), pose=doc.get("pose"))
+        rob = robustness(models.get_model(name), vec, rcfg)
         ev = evaluate.run(preset, duration=a.duration)
         res[lab] = {"robustness": rob, "c_angles": ev.report.get("c_angles")}
         rows[lab] = {

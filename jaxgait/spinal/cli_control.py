@@ -134,8 +134,14 @@ def cmd_climb(a) -> dict:
 
     rows, res = {}, {}
     for preset in a.presets:
-        name, vec, _ = load_preset(preset)
-        rcfg = RobustnessConfig(seeds=a.seeds, seed=a.seed, duration=a.duration)
+        name, vec, doc = load_preset(preset)
+        rcfg = RobustnessConfig(
+            seeds=a.seeds,
+            seed=a.seed,
+            duration=a.duration,
+            v0=doc.get("v0"),
+            pose=doc.get("pose"),
+        )
         r = walk_tests(models.get_model(name), vec, rcfg, tests=("slope",))
         lab = label(preset)
         res[lab] = r
