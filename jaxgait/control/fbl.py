@@ -304,17 +304,23 @@ FBL = ParamTable(
 )
 
 
-def lift_with_extras(vec_fbl, neutral: dict, extras: dict | None, label: str) -> np.ndarray:
-    """An FBL vector (28,) followed by extra parameters: ``neutral``'s names in order, each
-    the value ``extras`` gives, else its neutral one (the lift of FBL+ and ``fbl_ankle``).
+def lift_with_extras(
+    vec_fbl, neutral: dict, extras: dict | None, label: str, base=None, base_label: str = "FBL"
+) -> np.ndarray:
+    """A ``base`` vector (default FBL's 28) followed by extra parameters: ``neutral``'s names
+    in order, each the value ``extras`` gives, else its neutral one (the lift of FBL+,
+    ``fbl_ankle`` and, from FBL+, ``fblplus_bal``).
 
     Raises:
-      ValueError: ``vec_fbl`` is not 28 values; KeyError: an unknown extra (named, with
-      ``label``, the model's name).
+      ValueError: ``vec_fbl`` is not ``base.size`` values (the message names ``base_label``);
+      KeyError: an unknown extra (named, with ``label``, the model's name).
     """
+    base = FBL if base is None else base
     vec_fbl = np.asarray(vec_fbl, dtype=float)
-    if vec_fbl.shape != (FBL.size,):
-        raise ValueError(f"expected an FBL vector of {FBL.size} values, got {vec_fbl.shape}")
+    if vec_fbl.shape != (base.size,):
+        raise ValueError(
+            f"expected an {base_label} vector of {base.size} values, got {vec_fbl.shape}"
+        )
     unknown = sorted(set(extras or {}) - set(neutral))
     if unknown:
         raise KeyError(f"unknown {label} extra parameter(s): {', '.join(unknown)}")

@@ -32,7 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxgait.control.fbl import N_SENSORS, packed_sensors, reflex_init
+from jaxgait.control.fbl import N_SENSORS, lift_with_extras, packed_sensors, reflex_init
 from jaxgait.control.fblplus import (
     FBLPLUS,
     FBLPLUS_CONTROLLER,
@@ -73,14 +73,7 @@ def lift_fblplus(vec_plus, extras: dict | None = None) -> np.ndarray:
     Raises:
       ValueError: ``vec_plus`` is not 38 values; KeyError: an unknown extra.
     """
-    vec_plus = np.asarray(vec_plus, dtype=float)
-    if vec_plus.shape != (FBLPLUS.size,):
-        raise ValueError(f"expected an FBL+ vector of {FBLPLUS.size} values, got {vec_plus.shape}")
-    unknown = sorted(set(extras or {}) - set(NEUTRAL))
-    if unknown:
-        raise KeyError(f"unknown fblplus_bal extra parameter(s): {', '.join(unknown)}")
-    values = {**NEUTRAL, **(extras or {})}
-    return np.concatenate([vec_plus, [float(values[n]) for n in EXTRA_NAMES]])
+    return lift_with_extras(vec_plus, NEUTRAL, extras, "fblplus_bal", FBLPLUS, "FBL+")
 
 
 def balance_offset(p: dict, s: jax.Array) -> jax.Array:
