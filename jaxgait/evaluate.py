@@ -376,6 +376,7 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
             if a.plots is not None:
                 from jaxgait.analysis.plots import plot_all
 
+                kin, grf = reference_data(a.reference)
                 paths = plot_all(
                     a.plots,
                     result.trace,
@@ -384,8 +385,8 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
                     result.model,
                     terrain=result.env.terrain,
                     measures_dict=result.measures,
-                    reference=reference_data(a.reference)[0],
-                    grf_reference=reference_data(a.reference)[1],
+                    reference=kin,
+                    grf_reference=grf,
                 )
                 rep["plot_files"] = {k: str(v) for k, v in paths.items()}
             if a.save_scene is not None:

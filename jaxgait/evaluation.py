@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from jaxgait import models
+from jaxgait.analysis.refdata import GAIT_REFERENCES
 from jaxgait.core.jsonio import json_safe
 from jaxgait.core.limits import LimitError, check_duration
 from jaxgait.presets import load_preset, preset_from_dict, resolve_preset
@@ -65,8 +66,8 @@ def _load(preset) -> tuple[str, np.ndarray, dict, str, str]:
     return model, vec, doc, str(preset), str(path)
 
 
-#: Human gait references of :func:`run` (``reference=``).
-REFERENCES = ("walking", "running")
+#: Human gait references of :func:`run` (``reference=``): the analysis layer's names.
+REFERENCES = GAIT_REFERENCES
 
 
 def reference_data(name: str):

@@ -39,7 +39,7 @@ from jaxgait.control.fblplus import (
     fblplus_step,
     fblplus_stimulation,
 )
-from jaxgait.control.interface import Sensors
+from jaxgait.control.interface import Sensors, com_over_other_ankle
 from jaxgait.core.params import ParamSpec, ParamTable
 
 #: Columns packed after FBL's sensors: x_CoM - x_ankle of the other leg [m] and
@@ -92,10 +92,7 @@ def fblplus_bal_stimulation(p: dict, s: jax.Array) -> jax.Array:
 def packed_sensors_bal(sens: Sensors) -> jax.Array:
     """FBL's packed sensors (2, N_SENSORS) with Wang's d and v appended: the CoM's horizontal
     offset [m] and velocity [m/s] relative to the other leg's ankle."""
-    other = sens.ankle[::-1]
-    other_v = sens.ankle_vel[::-1]
-    d = sens.com[0] - other[:, 0]
-    v = sens.com_vel[0] - other_v[:, 0]
+    d, v = com_over_other_ankle(sens)
     return jnp.concatenate([packed_sensors(sens), d[:, None], v[:, None]], axis=1)
 
 

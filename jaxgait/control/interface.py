@@ -84,6 +84,15 @@ class Sensors:
     dleg: jax.Array
 
 
+def com_over_other_ankle(sens: Sensors) -> tuple[jax.Array, jax.Array]:
+    """SIMBICON's balance inputs per leg (Yin et al. 2007; Wang et al. 2012 section 4.3):
+    ``(d, v)`` (2,), the CoM's horizontal offset [m] and velocity [m/s] relative to the other
+    (stance) leg's ankle."""
+    d = sens.com[0] - sens.ankle[::-1][:, 0]
+    v = sens.com_vel[0] - sens.ankle_vel[::-1, 0]
+    return d, v
+
+
 @dataclass(frozen=True, eq=False)
 class Controller:
     """A controller as static data plus pure functions (see the module docstring).

@@ -59,7 +59,7 @@ from flax import struct
 
 from jaxgait.control.commands import Command
 from jaxgait.control.delay import DelayLine, delay_init, delay_taps, steps_for
-from jaxgait.control.interface import Controller, Sensors
+from jaxgait.control.interface import Controller, Sensors, com_over_other_ankle
 from jaxgait.control.wang_params import INITIAL_ANGLE_NAMES, WANG
 from jaxgait.muscles.mtu import MUSCLES8, WANG8
 
@@ -254,7 +254,7 @@ def packed_sensors(sens: Sensors, global_hip: bool = True) -> jax.Array:
     q_hip, dq_hip = jnp.pi - sens.phi[:, 0], -sens.dphi[:, 0]
     if global_hip:
         q_hip, dq_hip = q_hip - sens.trunk, dq_hip - sens.dtrunk
-    other = sens.ankle[::-1]
+    d, v = com_over_other_ankle(sens)
     cols = [
         sens.stance.astype(dt),
         sens.double_support.astype(dt),
@@ -266,8 +266,8 @@ def packed_sensors(sens: Sensors, global_hip: bool = True) -> jax.Array:
         dq_hip,
         sens.theta_to,
         sens.dleg,
-        sens.com[0] - other[:, 0],
-        sens.com_vel[0] - sens.ankle_vel[::-1, 0],
+        d,
+        v,
     ]
     return jnp.concatenate([sens.f_norm, sens.l_norm, jnp.stack(cols, axis=1)], axis=1)
 
