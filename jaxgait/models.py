@@ -34,7 +34,7 @@ from jaxgait.control.gait import GaitConfig
 from jaxgait.control.gh2010 import GH2010_CONTROLLER
 from jaxgait.control.interface import Controller
 from jaxgait.control.spinal import FBL_NET, FBLPLUS_NET, spinal_controller
-from jaxgait.control.wang import WANG_CONTROLLER
+from jaxgait.control.wang import WANG_CONTROLLER, WANG_RUN_CONTROLLER
 from jaxgait.core.params import ParamTable
 from jaxgait.sim.model import planar_model
 from jaxgait.taga.sim import COMMANDS as TAGA_COMMANDS
@@ -129,6 +129,7 @@ register(
     )
 )
 register(planar_spec(WANG_CONTROLLER))
+register(planar_spec(WANG_RUN_CONTROLLER))
 register(planar_spec(FBL_ANKLE_CONTROLLER))
 register(planar_spec(FBLPLUS_BAL_CONTROLLER))
 

@@ -12,7 +12,15 @@ from jaxgait.body.joints import q_to_phi
 from jaxgait.control import wang as w
 from jaxgait.control.fbl import FBL
 from jaxgait.control.interface import Sensors
-from jaxgait.control.wang_params import INITIAL_SPECS, STANCE_SPECS, SWING_SPECS, WANG
+from jaxgait.control.wang_params import (
+    INITIAL_SPECS,
+    RUN_RANGES,
+    STANCE_SPECS,
+    SWING_SPECS,
+    WANG,
+    WANG_RUN,
+    widened,
+)
 from jaxgait.muscles import effort as ef
 from jaxgait.muscles import energy as en
 from jaxgait.muscles import mtu
@@ -357,6 +365,46 @@ def test_effort_task_terms_and_return_on_a_hand_made_trajectory():
 
 
 # ------------------------------------------------------------------ the model rolls out
+def test_running_table_widens_only_the_listed_ranges():
+    """wang8_run: wang8's names in wang8's order, each listed range containing the old one,
+    every other entry unchanged, so a wang8 vector (e.g. a shipped runner) is a valid one."""
+    assert WANG_RUN.names == WANG.names and WANG_RUN.name == "wang8_run"
+    for old, new in zip(WANG.specs, WANG_RUN.specs, strict=True):
+        assert new.init == old.init
+        if old.name in RUN_RANGES:
+            assert (new.lower, new.upper) == RUN_RANGES[old.name]
+            assert new.lower <= old.lower and new.upper >= old.upper
+            assert (new.lower, new.upper) != (old.lower, old.upper)
+        else:
+            assert new == old
+    from jaxgait.presets import load_preset
+
+    _, vec, _ = load_preset("wang_run_2p5")
+    WANG_RUN.check(vec)
+    with pytest.raises(ValueError, match="does not contain"):
+        widened(WANG, "x", {"GF_SOL": (0.5, 5.0)}, "")
+    with pytest.raises(ValueError, match="no parameters"):
+        widened(WANG, "x", {"G_nope": (0.0, 1.0)}, "")
+
+
+def test_running_model_is_the_same_step_with_another_box():
+    """The same parameters roll out alike on wang8 and wang8_run (one step, two tables), and
+    a search on wang8_run may leave wang8's box."""
+    spec = models.get_spec("wang8_run")
+    assert spec.table is WANG_RUN and spec.commands == models.get_spec("wang8").commands
+    cfg = sim.SimConfig(duration=0.3, log_dt=0.01)
+    env = envs.make_env("flat", jax.random.PRNGKey(0))
+    p = jnp.asarray(WANG.init, jnp.float32)
+    a = sim.rollout(models.get_model("wang8"), cfg, p, env)[0]
+    b = sim.rollout(models.get_model("wang8_run"), cfg, p, env)[0]
+    np.testing.assert_array_equal(np.asarray(b.qpos), np.asarray(a.qpos))
+    v = np.asarray(WANG.init, float).copy()
+    v[WANG.index("GF_SOL")] = 4.0
+    WANG_RUN.check(v)
+    with pytest.raises(ValueError, match="GF_SOL=4 not in"):
+        WANG.check(v)
+
+
 def test_wang8_model_rolls_out_with_eight_muscles():
     model = models.get_model("wang8")
     f = sim.make_rollout(model, sim.SimConfig(duration=0.5), batched=False)  # as test_controllers

@@ -50,6 +50,7 @@ muscle model.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import jax
@@ -60,7 +61,7 @@ from flax import struct
 from jaxgait.control.commands import Command
 from jaxgait.control.delay import DelayLine, delay_init, delay_taps, steps_for
 from jaxgait.control.interface import Controller, Sensors, com_over_other_ankle
-from jaxgait.control.wang_params import INITIAL_ANGLE_NAMES, WANG
+from jaxgait.control.wang_params import INITIAL_ANGLE_NAMES, WANG, WANG_RUN
 from jaxgait.muscles.mtu import MUSCLES8, WANG8
 
 HFL, GLU, HAM, VAS, GAS, SOL, TA, RF = range(8)
@@ -335,4 +336,14 @@ WANG_CONTROLLER = Controller(
     settings=WangSettings(),
     description="Wang et al. 2012 8-muscle reflex controller with SI/SP states and SIMBICON",
     initial_offsets=wang_initial_offsets,
+)
+
+#: The same controller with the running searches' wider ranges (:data:`WANG_RUN`): one step,
+#: another parameter box.  A ``wang8`` preset runs unchanged on it (the same vector).
+WANG_RUN_CONTROLLER = dataclasses.replace(
+    WANG_CONTROLLER,
+    name="wang8_run",
+    table=WANG_RUN,
+    description="wang8 with the running searches' wider ranges (GAS/SOL gains, hip target, "
+    "start state)",
 )

@@ -41,6 +41,8 @@ theta_k knee flexion (0 straight, bent +), theta_h thigh flexion from the vertic
 
 from __future__ import annotations
 
+import dataclasses
+
 from jaxgait.core.params import ParamSpec, ParamTable
 
 _G = "Geyer nms_model_ControlInit.m (geyer_reference 2c, G family)"
@@ -222,3 +224,42 @@ INITIAL_ANGLE_NAMES: tuple[str, ...] = tuple(s.name for s in INITIAL_SPECS[:7])
 
 #: The 66 parameters: 30 stance, 26 swing, 2 balance, 8 initial state.
 WANG = ParamTable("wang8", STANCE_SPECS + SWING_SPECS + BALANCE_SPECS + INITIAL_SPECS)
+
+#: Ranges of :data:`WANG_RUN`, widened where the searched runners sat at a bound of
+#: :data:`WANG` (``wang_run_2p5``: GF_SOL 2.94 of 3, th_hip0 1.17 of 1.2 rad, HL_HAM_sw 1.19
+#: of 1.2, init_dv 0.49 of 0.5 m/s, init_trunk -0.19 of -0.2 rad).
+RUN_RANGES: dict[str, tuple[float, float]] = {
+    "GF_SOL": (0.0, 5.0),  # Wang doubles Geyer's 1.2 for running; 5 leaves room above 2.4
+    "GF_GAS": (0.0, 5.0),  # as GF_SOL (Geyer 1.1, doubled 2.2)
+    "HL_HAM_sw": (0.4, 1.5),
+    "th_hip0": (-0.2, 1.6),
+    "init_trunk": (-0.5, 0.2),
+    "init_knee_sw": (-0.2, 1.5),  # a running swing knee bends to about 100 deg
+    "init_dv": (-0.5, 1.5),
+}
+
+
+def widened(table: ParamTable, name: str, ranges: dict[str, tuple[float, float]], why: str):
+    """``table`` renamed ``name``, with the ``ranges`` (name -> (lower, upper)) replacing the
+    listed entries' ranges (each must contain the old range, so every vector valid in
+    ``table`` is valid in the new one) and ``why`` appended to their sources."""
+    unknown = sorted(set(ranges) - set(table.names))
+    if unknown:
+        raise ValueError(f"table {table.name!r} has no parameters {unknown}")
+    specs = []
+    for s in table.specs:
+        if s.name in ranges:
+            lo, hi = ranges[s.name]
+            if lo > s.lower or hi < s.upper:
+                raise ValueError(
+                    f"{s.name}: [{lo:g}, {hi:g}] does not contain [{s.lower:g}, {s.upper:g}]"
+                )
+            s = dataclasses.replace(s, lower=float(lo), upper=float(hi), source=s.source + why)
+        specs.append(s)
+    return ParamTable(name, tuple(specs))
+
+
+#: :data:`WANG` with :data:`RUN_RANGES`: the table of the running searches (model
+#: ``wang8_run``); the same names in the same order, so a ``wang8`` vector is a ``wang8_run``
+#: vector.
+WANG_RUN = widened(WANG, "wang8_run", RUN_RANGES, "; range widened for running (wang8_run)")
