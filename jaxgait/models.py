@@ -29,7 +29,7 @@ from jaxgait.control.commands import Command
 from jaxgait.control.fbl import FBL_CONTROLLER
 from jaxgait.control.fblankle import FBL_ANKLE_CONTROLLER
 from jaxgait.control.fblplus import FBLPLUS_CONTROLLER
-from jaxgait.control.fblplus_bal import FBLPLUS_BAL_CONTROLLER
+from jaxgait.control.fblplus_bal import FBLPLUS_BAL_CONTROLLER, FBLPLUS_BAL_RUN_CONTROLLER
 from jaxgait.control.gait import GaitConfig
 from jaxgait.control.gh2010 import GH2010_CONTROLLER
 from jaxgait.control.interface import Controller
@@ -132,6 +132,7 @@ register(planar_spec(WANG_CONTROLLER))
 register(planar_spec(WANG_RUN_CONTROLLER))
 register(planar_spec(FBL_ANKLE_CONTROLLER))
 register(planar_spec(FBLPLUS_BAL_CONTROLLER))
+register(planar_spec(FBLPLUS_BAL_RUN_CONTROLLER))
 
 
 def _gh2010_build(timestep=None):

@@ -149,3 +149,25 @@ def test_neutral_lift_moves_like_its_fblplus_source(tmp_path):
     np.testing.assert_allclose(np.asarray(b.qpos), np.asarray(a.qpos), atol=1e-3)
     with pytest.raises(ValueError, match="a 'fblplus' preset is needed"):
         write_neutral_preset("fbl_walk", tmp_path / "x.json", model="fblplus_bal")
+
+
+def test_running_model_widens_the_listed_ranges_of_the_same_controller():
+    """fblplus_bal_run: fblplus_bal's names and step, only RUN_RANGES wider, so an
+    fblplus_bal vector is valid in it and one with G_GAS = 2.4 (Wang's doubled gain) only
+    in it."""
+    from jaxgait.control.fblplus_bal import FBLPLUS_BAL_RUN, RUN_RANGES
+
+    spec = models.get_spec("fblplus_bal_run")
+    assert spec.table is FBLPLUS_BAL_RUN and FBLPLUS_BAL_RUN.names == FBLPLUS_BAL.names
+    for old, new in zip(FBLPLUS_BAL.specs, FBLPLUS_BAL_RUN.specs, strict=True):
+        if old.name in RUN_RANGES:
+            assert new.lower <= old.lower and new.upper >= old.upper
+            assert (new.lower, new.upper) == RUN_RANGES[old.name]
+        else:
+            assert new == old
+    v = np.asarray(FBLPLUS_BAL.init, float).copy()
+    FBLPLUS_BAL_RUN.check(v)
+    v[FBLPLUS_BAL.index("G_GAS")] = 2.4
+    FBLPLUS_BAL_RUN.check(v)
+    with pytest.raises(ValueError, match="G_GAS=2.4 not in"):
+        FBLPLUS_BAL.check(v)

@@ -19,8 +19,8 @@ from jaxgait.control.wang_params import (
     SWING_SPECS,
     WANG,
     WANG_RUN,
-    widened,
 )
+from jaxgait.core.params import widened
 from jaxgait.muscles import effort as ef
 from jaxgait.muscles import energy as en
 from jaxgait.muscles import mtu

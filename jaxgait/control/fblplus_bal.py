@@ -40,7 +40,7 @@ from jaxgait.control.fblplus import (
     fblplus_stimulation,
 )
 from jaxgait.control.interface import Sensors, com_over_other_ankle
-from jaxgait.core.params import ParamSpec, ParamTable
+from jaxgait.core.params import ParamSpec, ParamTable, widened
 
 #: Columns packed after FBL's sensors: x_CoM - x_ankle of the other leg [m] and
 #: vx_CoM - vx_ankle of the other leg [m/s] (Wang's d and v).
@@ -106,4 +106,28 @@ FBLPLUS_BAL_CONTROLLER = dataclasses.replace(
     description="FBL+ with SIMBICON foot placement on the swing-end hip target (Wang 2012 4.3)",
     init=functools.partial(reflex_init, pack=packed_sensors_bal),
     step=functools.partial(fblplus_step, pack=packed_sensors_bal),
+)
+
+#: Ranges of :data:`FBLPLUS_BAL_RUN`, widened where the supported runners sat at a bound of
+#: Table 2.5 (``experiments/running/fblplus_bal/bws_0.02``: G_GAS 1.58 of 1.6, k_lean 1.95 of
+#: 2, theta_ref -0.041 of -0.05 rad).
+RUN_RANGES: dict[str, tuple[float, float]] = {
+    "G_SOL": (0.8, 3.2),  # Wang 2012 doubles Geyer's plantarflexor gains for running
+    "G_GAS": (0.3, 3.2),
+    "k_lean": (0.0, 4.0),
+    "theta_ref": (-0.2, 0.3),
+}
+
+#: :data:`FBLPLUS_BAL` with :data:`RUN_RANGES` (model ``fblplus_bal_run``): the same names in
+#: the same order, so an ``fblplus_bal`` vector is an ``fblplus_bal_run`` vector.
+FBLPLUS_BAL_RUN = widened(
+    FBLPLUS_BAL, "fblplus_bal_run", RUN_RANGES, "; range widened for running (fblplus_bal_run)"
+)
+
+#: The same controller with the running searches' box.
+FBLPLUS_BAL_RUN_CONTROLLER = dataclasses.replace(
+    FBLPLUS_BAL_CONTROLLER,
+    name="fblplus_bal_run",
+    table=FBLPLUS_BAL_RUN,
+    description="fblplus_bal with the running searches' wider ranges (plantarflexor gains, lean)",
 )

@@ -41,9 +41,7 @@ theta_k knee flexion (0 straight, bent +), theta_h thigh flexion from the vertic
 
 from __future__ import annotations
 
-import dataclasses
-
-from jaxgait.core.params import ParamSpec, ParamTable
+from jaxgait.core.params import ParamSpec, ParamTable, widened
 
 _G = "Geyer nms_model_ControlInit.m (geyer_reference 2c, G family)"
 _W = "Wang 2012 section 4"
@@ -237,26 +235,6 @@ RUN_RANGES: dict[str, tuple[float, float]] = {
     "init_knee_sw": (-0.2, 1.5),  # a running swing knee bends to about 100 deg
     "init_dv": (-0.5, 1.5),
 }
-
-
-def widened(table: ParamTable, name: str, ranges: dict[str, tuple[float, float]], why: str):
-    """``table`` renamed ``name``, with the ``ranges`` (name -> (lower, upper)) replacing the
-    listed entries' ranges (each must contain the old range, so every vector valid in
-    ``table`` is valid in the new one) and ``why`` appended to their sources."""
-    unknown = sorted(set(ranges) - set(table.names))
-    if unknown:
-        raise ValueError(f"table {table.name!r} has no parameters {unknown}")
-    specs = []
-    for s in table.specs:
-        if s.name in ranges:
-            lo, hi = ranges[s.name]
-            if lo > s.lower or hi < s.upper:
-                raise ValueError(
-                    f"{s.name}: [{lo:g}, {hi:g}] does not contain [{s.lower:g}, {s.upper:g}]"
-                )
-            s = dataclasses.replace(s, lower=float(lo), upper=float(hi), source=s.source + why)
-        specs.append(s)
-    return ParamTable(name, tuple(specs))
 
 
 #: :data:`WANG` with :data:`RUN_RANGES`: the table of the running searches (model

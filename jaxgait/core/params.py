@@ -7,6 +7,7 @@ are flat float vectors (D,) in table order, which is what the optimisers see;
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -122,3 +123,23 @@ def save_preset(path: Path, model: str, table: ParamTable, vec, **meta) -> None:
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_text(json.dumps(doc, indent=2) + "\n")
     tmp.replace(path)
+
+
+def widened(table: ParamTable, name: str, ranges: dict[str, tuple[float, float]], why: str):
+    """``table`` renamed ``name``, with the ``ranges`` (name -> (lower, upper)) replacing the
+    listed entries' ranges (each must contain the old range, so every vector valid in
+    ``table`` is valid in the new one) and ``why`` appended to their sources."""
+    unknown = sorted(set(ranges) - set(table.names))
+    if unknown:
+        raise ValueError(f"table {table.name!r} has no parameters {unknown}")
+    specs = []
+    for s in table.specs:
+        if s.name in ranges:
+            lo, hi = ranges[s.name]
+            if lo > s.lower or hi < s.upper:
+                raise ValueError(
+                    f"{s.name}: [{lo:g}, {hi:g}] does not contain [{s.lower:g}, {s.upper:g}]"
+                )
+            s = dataclasses.replace(s, lower=float(lo), upper=float(hi), source=s.source + why)
+        specs.append(s)
+    return ParamTable(name, tuple(specs))
