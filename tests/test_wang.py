@@ -561,3 +561,34 @@ def test_every_shipped_wang_runner_has_flight_and_no_double_stance():
         assert not rep["fell"], name
         assert rep["flight_fraction"] > 0.01, (name, rep["flight_fraction"])
         assert rep["double_stance_fraction"] < 0.01, (name, rep["double_stance_fraction"])
+
+
+@pytest.mark.slow
+def test_the_push_tolerant_runner_runs_and_survives_pushes_where_its_start_falls():
+    """wang_push_run_2p5 runs 20 s on flat ground with flight and no double stance, and runs
+    through a 50 N, 0.4 s forward push on the trunk at 4 s and at 6.3 s (Wang's push-tolerant
+    runner's magnitude); wang_run_2p5, from which it was optimised, falls under them."""
+    from jaxgait import evaluation
+    from jaxgait.presets import list_presets, load_preset
+
+    if "wang_push_run_2p5" not in list_presets():
+        pytest.skip("wang_push_run_2p5 is not shipped")
+    rep = evaluation.run("wang_push_run_2p5", duration=20.0).report
+    assert not rep["fell"]
+    assert rep["flight_fraction"] > 0.01 and rep["double_stance_fraction"] < 0.01, rep
+    model = models.get_model("wang8")
+    times = (4.0, 6.3)
+    cfgs = [
+        envs.get_env_config("push", magnitude=50.0, duration=0.4, t_min=t, t_max=t) for t in times
+    ]
+    env = jax.tree.map(lambda *x: jnp.stack(x), *[c.build(jax.random.PRNGKey(0)) for c in cfgs])
+    fell = {}
+    for name in ("wang_push_run_2p5", "wang_run_2p5"):
+        _, vec, doc = load_preset(name)
+        cfg = sim.SimConfig(duration=20.0, log_dt=0.1, v0=float(doc["v0"]))
+        f = sim.make_rollout(model, cfg, batched=True)
+        params = jnp.broadcast_to(jnp.asarray(vec, jnp.float32), (len(times), vec.size))
+        _, _, s, _ = f(params, env)
+        fell[name] = np.asarray(s.fell).tolist()
+    assert fell["wang_push_run_2p5"] == [False, False], fell
+    assert any(fell["wang_run_2p5"]), fell
