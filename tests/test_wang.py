@@ -522,28 +522,37 @@ def test_every_shipped_wang_preset_walks_or_runs_20s_near_its_target():
             assert abs(v - targets[i]) < 0.1, (names[i], v)
 
 
-@pytest.mark.slow
-def test_the_push_tolerant_walker_survives_wangs_push_where_nwalk_falls():
-    """wang_push_walk_1p25 walks 20 s with a 100 N, 0.4 s forward push on the trunk at 4 s
-    and at 6.3 s; nwalk, from which it was optimised, falls under the same push."""
-    from jaxgait.presets import list_presets, load_preset
+def _falls_under_pushes(names, magnitude: float, times=(4.0, 6.3)) -> dict[str, list[bool]]:
+    """Per preset of ``names``: did it fall within 20 s on flat ground under one forward
+    ``magnitude`` [N], 0.4 s push on the trunk at each of ``times`` [s] (one rollout each,
+    from the preset's v0)?"""
+    from jaxgait.presets import load_preset
 
-    if "wang_push_walk_1p25" not in list_presets():
-        pytest.skip("wang_push_walk_1p25 is not shipped")
     model = models.get_model("wang8")
-    times = (4.0, 6.3)
     cfgs = [
-        envs.get_env_config("push", magnitude=100.0, duration=0.4, t_min=t, t_max=t) for t in times
+        envs.get_env_config("push", magnitude=magnitude, duration=0.4, t_min=t, t_max=t)
+        for t in times
     ]
     env = jax.tree.map(lambda *x: jnp.stack(x), *[c.build(jax.random.PRNGKey(0)) for c in cfgs])
     fell = {}
-    for name in ("wang_push_walk_1p25", "wang_walk_1p25"):
+    for name in names:
         _, vec, doc = load_preset(name)
         cfg = sim.SimConfig(duration=20.0, log_dt=0.1, v0=float(doc.get("v0", 1.3)))
         f = sim.make_rollout(model, cfg, batched=True)
         params = jnp.broadcast_to(jnp.asarray(vec, jnp.float32), (len(times), vec.size))
-        _, _, s, _ = f(params, env)
-        fell[name] = np.asarray(s.fell).tolist()
+        fell[name] = np.asarray(f(params, env)[2].fell).tolist()
+    return fell
+
+
+@pytest.mark.slow
+def test_the_push_tolerant_walker_survives_wangs_push_where_nwalk_falls():
+    """wang_push_walk_1p25 walks 20 s with a 100 N, 0.4 s forward push on the trunk at 4 s
+    and at 6.3 s; nwalk, from which it was optimised, falls under the same push."""
+    from jaxgait.presets import list_presets
+
+    if "wang_push_walk_1p25" not in list_presets():
+        pytest.skip("wang_push_walk_1p25 is not shipped")
+    fell = _falls_under_pushes(("wang_push_walk_1p25", "wang_walk_1p25"), 100.0)
     assert fell["wang_push_walk_1p25"] == [False, False], fell
     assert any(fell["wang_walk_1p25"]), fell
 
@@ -569,26 +578,13 @@ def test_the_push_tolerant_runner_runs_and_survives_pushes_where_its_start_falls
     through a 50 N, 0.4 s forward push on the trunk at 4 s and at 6.3 s (Wang's push-tolerant
     runner's magnitude); wang_run_2p5, from which it was optimised, falls under them."""
     from jaxgait import evaluation
-    from jaxgait.presets import list_presets, load_preset
+    from jaxgait.presets import list_presets
 
     if "wang_push_run_2p5" not in list_presets():
         pytest.skip("wang_push_run_2p5 is not shipped")
     rep = evaluation.run("wang_push_run_2p5", duration=20.0).report
     assert not rep["fell"]
     assert rep["flight_fraction"] > 0.01 and rep["double_stance_fraction"] < 0.01, rep
-    model = models.get_model("wang8")
-    times = (4.0, 6.3)
-    cfgs = [
-        envs.get_env_config("push", magnitude=50.0, duration=0.4, t_min=t, t_max=t) for t in times
-    ]
-    env = jax.tree.map(lambda *x: jnp.stack(x), *[c.build(jax.random.PRNGKey(0)) for c in cfgs])
-    fell = {}
-    for name in ("wang_push_run_2p5", "wang_run_2p5"):
-        _, vec, doc = load_preset(name)
-        cfg = sim.SimConfig(duration=20.0, log_dt=0.1, v0=float(doc["v0"]))
-        f = sim.make_rollout(model, cfg, batched=True)
-        params = jnp.broadcast_to(jnp.asarray(vec, jnp.float32), (len(times), vec.size))
-        _, _, s, _ = f(params, env)
-        fell[name] = np.asarray(s.fell).tolist()
+    fell = _falls_under_pushes(("wang_push_run_2p5", "wang_run_2p5"), 50.0)
     assert fell["wang_push_run_2p5"] == [False, False], fell
     assert any(fell["wang_run_2p5"]), fell
