@@ -200,13 +200,48 @@ def _autopilot(auto, inner, model: str, where: str):
         raise PresetError(
             f"{where}: autopilot.target_rate must be a number > 0 [m/s^2], got {rate!r}"
         )
-    return speed_controller(
-        model,
-        inner,
-        vec,
-        network_in_table=_network_in_table(auto, where),
-        target_rate=None if rate is None else float(rate),
-    )
+    try:
+        return speed_controller(
+            model,
+            inner,
+            vec,
+            network_in_table=_network_in_table(auto, where),
+            target_rate=None if rate is None else float(rate),
+            anchors=_anchors(auto, where),
+            grade_anchors=_anchors(auto, where, "grade_anchors", "grade"),
+        )
+    except ValueError as e:
+        raise PresetError(f"{where}: {e}") from None
+
+
+def _anchors(auto: dict, where: str, entry: str = "anchors", key: str = "v"):
+    """The ``autopilot.anchors`` entry, [{"v": v_k [m/s], "params": {FBL name: value}}, ...]
+    (or ``grade_anchors``, [{"grade": g_j, "params": ...}, ...]) as (v_k, FBL vector) pairs,
+    each vector checked against FBL's ranges (None when absent)."""
+    from jaxgait.control.fbl import FBL
+
+    raw = auto.get(entry)
+    if raw is None:
+        return None
+    if not isinstance(raw, list) or not raw:
+        raise PresetError(
+            f'{where}: autopilot.{entry} must be a list of {{"{key}": ..., "params": ...}}'
+        )
+    out = []
+    for k, a in enumerate(raw):
+        at = f"{where} (autopilot.{entry}[{k}])"
+        if not isinstance(a, dict) or set(a) != {key, "params"}:
+            raise PresetError(f'{at}: an anchor is {{"{key}": number, "params": {{...}}}}')
+        q = a["params"]
+        if not isinstance(q, dict) or sorted(q) != sorted(FBL.names):
+            raise PresetError(f"{at}: params must give all {FBL.size} FBL parameters")
+        vec = FBL.pack({n: _number(at, n, x) for n, x in q.items()})
+        try:
+            FBL.check(vec, where=at)
+        except ValueError as e:
+            raise PresetError(str(e)) from None
+        out.append((_number(at, key, a[key]), vec))
+    return out
 
 
 def defining_entries(name: str) -> dict:

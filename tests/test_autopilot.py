@@ -211,3 +211,113 @@ def test_3fbl_auto_wide_follows_a_step_of_the_target_speed():
     res = track("3fbl_auto_wide", [1.3, 1.2], segment_s=12.0, settle_s=5.0)
     assert not res["fell"]
     assert max(res["rms"]) < 0.08, res["rms"]
+
+
+def test_anchored_parameters_interpolate_by_the_target_by_hand():
+    from jaxgait.control.autopilot import anchored_params
+
+    speeds = np.array([0.6, 1.0, 1.8])
+    rows = jnp.array([[0.0, 1.0], [4.0, 1.0], [8.0, 3.0]])
+    for v, want in [
+        (0.2, [0.0, 1.0]),  # held below the first anchor
+        (0.6, [0.0, 1.0]),
+        (0.8, [2.0, 1.0]),  # halfway between 0.6 and 1.0
+        (1.0, [4.0, 1.0]),
+        (1.2, [5.0, 1.5]),  # a quarter of the way from 1.0 to 1.8
+        (2.5, [8.0, 3.0]),  # held above the last
+    ]:
+        np.testing.assert_allclose(anchored_params(v, speeds, rows), want, atol=1e-6)
+    np.testing.assert_array_equal(anchored_params(1.7, speeds[:1], rows[:1]), rows[0])
+
+
+def test_grade_anchors_are_kept_as_changes_from_the_level_one():
+    """Grade anchors r_j enter as r(g) - r_0: the level anchor's row is zero, the others
+    their difference from it; anchors without a level one are refused."""
+    from jaxgait.control.autopilot import speed_controller
+
+    inner = models.get_model("3fbl_walk").controller
+    r0 = np.asarray(inner.table.init, float)
+    r1 = r0 * 1.01
+    ctrl = speed_controller("t_g", inner, r0, grade_anchors=[(0.1, r1), (0.0, r0)])
+    assert ctrl.settings.grade_points.tolist() == [0.0, 0.1]
+    np.testing.assert_array_equal(ctrl.settings.grade_deltas[0], 0.0)
+    np.testing.assert_allclose(ctrl.settings.grade_deltas[1], r1 - r0)
+    with pytest.raises(ValueError, match="one at grade 0"):
+        speed_controller("t_g", inner, r0, grade_anchors=[(0.1, r1)])
+    with pytest.raises(ValueError, match="exclude each other"):
+        speed_controller("t_g", inner, r0, network_in_table=True, anchors=[(1.0, r0)])
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    v=st.floats(0.0, 3.0),
+    gaps=st.lists(st.floats(0.05, 0.5), min_size=1, max_size=5),
+    seed=st.integers(0, 1000),
+)
+def test_anchored_parameters_stay_between_their_neighbours(v, gaps, seed):
+    """The interpolated vector lies, entry by entry, between the two anchors around v."""
+    from jaxgait.control.autopilot import anchored_params
+
+    speeds = 0.4 + np.concatenate([[0.0], np.cumsum(gaps)])
+    rows = np.random.default_rng(seed).normal(size=(speeds.size, 3)).astype(np.float32)
+    q = np.asarray(anchored_params(v, speeds, jnp.asarray(rows, jnp.float32)))
+    k = int(np.clip(np.searchsorted(speeds, v, side="right") - 1, 0, speeds.size - 1))
+    j = min(k + 1, speeds.size - 1) if v > speeds[0] else k
+    lo, hi = np.minimum(rows[k], rows[j]), np.maximum(rows[k], rows[j])
+    assert np.all(q >= lo - 1e-5) and np.all(q <= hi + 1e-5)  # float32
+
+
+def test_speed_anchors_drive_the_network_they_interpolate(tmp_path):
+    """A model whose anchors all carry one network's parameters walks as that network in
+    the table does, bit for bit; an anchor changed at the target's side changes the walk;
+    the preset refuses anchors that disagree on the law or give no speed."""
+    from jaxgait.spinal.auto import anchored_preset
+
+    base = auto_preset(
+        auto_preset("3fbl_walk", "t_anc_a", {"k_p": 0.03}), "t_anc_b", network_in_table=True
+    )
+    slow = dict(base, tuning={"v_range": [1.0, 1.0]})
+    fast = dict(base, tuning={"v_range": [1.6, 1.6]})
+    level = dict(base, tuning={"v_range": [1.0, 1.0], "grade": 0.0})
+    steep = dict(base, tuning={"v_range": [1.0, 1.0], "grade": 0.1})
+    # grade anchors that carry the same network add nothing
+    same = anchored_preset([slow, fast], "t_anc_c", grade_presets=[steep, level])
+    assert [a["grade"] for a in same["autopilot"]["grade_anchors"]] == [0.0, 0.1]
+    fast2 = json.loads(json.dumps(fast))
+    fast2["params"]["net_G_SOL"] *= 0.9
+    changed = anchored_preset([slow, fast2], "t_anc_d")
+    assert [a["v"] for a in same["autopilot"]["anchors"]] == [1.0, 1.6]
+    assert same["table"] == "auto_speed" and same["params"]["k_p"] == 0.03
+    try:
+        cfg = sim.SimConfig(duration=1.0)
+        env = envs.make_env("flat", jax.random.PRNGKey(0))
+        coms = []
+        for doc in (base, same, changed):
+            path = tmp_path / f"{doc['model']}.json"
+            path.write_text(json.dumps(doc))
+            name, vec, _ = presets.load_preset(path)
+            model = models.get_model(name)
+            f = sim.make_rollout(model, cfg, batched=False)
+            coms.append(np.asarray(f(jnp.asarray(vec, jnp.float32), env)[0].com))
+        np.testing.assert_array_equal(coms[0], coms[1])
+        assert not np.array_equal(coms[1], coms[2])  # the default target 1.3 is between
+        bad = json.loads(json.dumps(fast))
+        bad["params"]["k_p"] = 0.05
+        with pytest.raises(Exception, match=r"law gains \['k_p'\] differ"):
+            anchored_preset([slow, bad], "t_anc_e")
+        with pytest.raises(Exception, match="not trained at one constant target"):
+            anchored_preset([base, fast], "t_anc_e")
+        with pytest.raises(Exception, match="anchor speeds must differ"):
+            anchored_preset([slow, fast], "t_anc_e", speeds=[1.2, 1.2])
+        with pytest.raises(Exception, match="need one at grade 0"):
+            anchored_preset([slow], "t_anc_e", grade_presets=[steep])
+        doc = json.loads(json.dumps(same))
+        doc["autopilot"]["anchors"][1]["v"] = 1.0
+        with pytest.raises(presets.PresetError, match="speed anchors must be distinct"):
+            presets.preset_from_dict(doc, where="a.json")
+        doc["autopilot"]["anchors"][1] = {"v": 1.7, "params": {"G_SOL": 1.0}}
+        with pytest.raises(presets.PresetError, match=r"anchors\[1\]\): params must give all"):
+            presets.preset_from_dict(doc, where="a.json")
+    finally:
+        for n in ("t_anc_a", "t_anc_b", "t_anc_c", "t_anc_d"):
+            presets.forget_network(n)

@@ -31,6 +31,23 @@ wraps a network controller, takes the target speed v* [m/s] as its command and e
    S = a1 O_INBAS + a2 omega + a3, so k_ff = 1 / a1 with k_w = 0);
 5. runs the network with that control vector (the other commands as scheduled).
 
+**Speed anchors (gain scheduling).**  A network's FBL parameters hold a walk over a narrow
+band of speeds (about 0.3-0.5 m/s for 3FBL, whatever C does).  With ``anchors`` the wrapper
+carries K parameter vectors p_k, each trained to hold its own constant target v_k (v_1 < ... <
+v_K), and drives the network with their piecewise-linear interpolation at the law's target,
+
+    p(v*) = p_k + (v* - v_k) / (v_{k+1} - v_k) (p_{k+1} - p_k)   for v_k <= v* <= v_{k+1},
+
+held at p_1 below v_1 and at p_K above v_K (gain scheduling by the target speed; one
+model, one command).  The interpolation follows the rate-limited target of
+step 0, so a step of the command moves the network's gains along a ramp.
+
+**Grade anchors.**  In the same way ``grade_anchors`` carry parameter vectors r_j trained to
+hold a walk on a constant grade g_j (one of them at g = 0, the base r_0); the network then runs
+with p(v*) + r(g) - r_0, r(g) their interpolation at the law's grade estimate g (step 3), so
+the gains change with the ground as the trained climbers' do (the change measured at the
+grade anchors' own target speed, added to the speed anchors' gains at any other).
+
 The law's gains are its parameter table (:data:`AUTO_SPEED`, what an optimiser searches); the
 network's own FBL parameters are fixed data of the wrapper, or, with ``network_in_table``,
 entries of the table too (named ``net_`` + the FBL name, :func:`law_table`), so that one
@@ -132,6 +149,10 @@ class AutoSettings:
     inner_params: np.ndarray
     network_in_table: bool = False
     target_rate: float | None = None
+    anchor_speeds: np.ndarray | None = None
+    anchor_params: np.ndarray | None = None
+    grade_points: np.ndarray | None = None
+    grade_deltas: np.ndarray | None = None
 
 
 @struct.dataclass
@@ -189,6 +210,19 @@ def speed_commands(p: dict, v_target, v, integral, sched: dict, commands, grade=
     return out
 
 
+def anchored_params(v_target, speeds, params):
+    """The network parameters at target ``v_target`` [m/s]: the piecewise-linear
+    interpolation of the anchors' rows ``params`` (K, D) over their ``speeds`` (K,),
+    increasing, held constant beyond the first and the last (module docstring)."""
+    speeds = jnp.asarray(speeds, params.dtype)
+    if speeds.shape[0] == 1:
+        return params[0]
+    v = jnp.clip(v_target, speeds[0], speeds[-1])
+    k = jnp.clip(jnp.searchsorted(speeds, v, side="right") - 1, 0, speeds.shape[0] - 2)
+    w = (v - speeds[k]) / (speeds[k + 1] - speeds[k])
+    return params[k] + w * (params[k + 1] - params[k])
+
+
 def auto_init(ctrl: Controller, sens: Sensors, dt: float) -> AutoState:
     inner = ctrl.settings.inner
     v0 = sens.com_vel[0]
@@ -208,10 +242,17 @@ def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: d
     grade = grade_at_touchdown(sens.feet, sens.touchdown, s.grade, p["k_g"])
     sched = {c.name: command[c.name] for c in inner.commands}
     cmd = speed_commands(p, v_target, v, integral, sched, inner.commands, grade)
-    if st.network_in_table:
+    if st.anchor_speeds is not None:
+        rows = jnp.asarray(st.anchor_params, sens.f_norm.dtype)
+        q = inner.table.unpack(anchored_params(v_target, st.anchor_speeds, rows))
+    elif st.network_in_table:
         q = {n: p[NET_PREFIX + n] for n in inner.table.names}
     else:
         q = inner.table.unpack(jnp.asarray(st.inner_params, sens.f_norm.dtype))
+    if st.grade_points is not None:
+        rows = jnp.asarray(st.grade_deltas, sens.f_norm.dtype)
+        d = anchored_params(grade, st.grade_points, rows)
+        q = {n: q[n] + d[i] for i, n in enumerate(inner.table.names)}
     stim, inner_state = inner.step(inner, q, sens, s.inner, cmd, dt)
     state = AutoState(inner=inner_state, v=v, integral=integral, grade=grade, target=v_target)
     return stim, state
@@ -224,10 +265,16 @@ def speed_controller(
     description: str = "",
     network_in_table: bool = False,
     target_rate: float | None = None,
+    anchors=None,
+    grade_anchors=None,
 ) -> Controller:
     """The closed-loop speed controller around the network controller ``inner`` driven by
     ``inner_params`` (its table's vector), or with ``network_in_table`` by the ``net_``
-    entries of its own table (:func:`law_table`, ``inner_params`` their start values);
+    entries of its own table (:func:`law_table`, ``inner_params`` their start values), or
+    with ``anchors`` (a sequence of (v_k [m/s], parameter vector), distinct v_k) by their
+    interpolation at the target (module docstring; ``inner_params`` then unused); with
+    ``grade_anchors`` ((g_j, parameter vector) pairs, one at g = 0) the parameters move with
+    the grade estimate by their interpolation less the g = 0 vector;
     ``target_rate`` [m/s^2] limits the rate of the target (step 0; None: no limit)."""
     if target_rate is not None and not target_rate > 0:
         raise ValueError(f"{name}: the target rate limit must be > 0 m/s^2, got {target_rate}")
@@ -236,6 +283,12 @@ def speed_controller(
         raise ValueError(
             f"{name}: inner parameters need {inner.table.size} values, got {vec.shape}"
         )
+    speeds, rows = _check_anchors(name, inner, anchors, network_in_table)
+    grades, deltas = _check_anchors(name, inner, grade_anchors, False, "grade")
+    if grades is not None:
+        if 0.0 not in grades:
+            raise ValueError(f"{name}: grade anchors need one at grade 0, got {grades.tolist()}")
+        deltas = deltas - deltas[list(grades).index(0.0)]
     names = {c.name for c in inner.commands}
     if "O_INBAS" not in names:
         raise ValueError(f"{name}: the wrapped model {inner.name!r} has no O_INBAS command")
@@ -251,6 +304,32 @@ def speed_controller(
             inner_params=vec,
             network_in_table=network_in_table,
             target_rate=None if target_rate is None else float(target_rate),
+            anchor_speeds=speeds,
+            anchor_params=rows,
+            grade_points=grades,
+            grade_deltas=deltas,
         ),
         description=description or f"automatic speed control of {inner.name}",
     )
+
+
+def _check_anchors(name: str, inner: Controller, anchors, network_in_table: bool, what="speed"):
+    """(points (K,), rows (K, D)) of an ``anchors`` argument, checked; (None, None) without."""
+    if anchors is None:
+        return None, None
+    if network_in_table:
+        raise ValueError(f"{name}: speed anchors and network_in_table exclude each other")
+    anchors = list(anchors)
+    if not anchors:
+        raise ValueError(f"{name}: {what} anchors need at least one (point, parameters) pair")
+    speeds = np.asarray([float(v) for v, _ in anchors], np.float64)
+    rows = np.stack([np.asarray(q, np.float64) for _, q in anchors])
+    if rows.shape != (len(anchors), inner.table.size):
+        raise ValueError(
+            f"{name}: each {what} anchor needs {inner.table.size} network parameters, "
+            f"got rows of shape {rows.shape[1:]}"
+        )
+    if not np.all(np.isfinite(speeds)) or np.any(np.diff(np.sort(speeds)) <= 0):
+        raise ValueError(f"{name}: {what} anchors must be distinct numbers, got {speeds.tolist()}")
+    order = np.argsort(speeds)
+    return speeds[order], rows[order]

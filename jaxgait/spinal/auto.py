@@ -3,6 +3,9 @@
 * :func:`auto_preset`: the preset document of a network model with the closed-loop speed
   law of :mod:`jaxgait.control.autopilot` (``"table": "auto_speed"``, the law's gains as its
   parameters, the network and its FBL parameters as fixed data);
+* :func:`anchored_preset`: one speed-controlled model from several network-in-table presets,
+  each trained to hold its own constant target (speed anchors: the network's parameters
+  interpolated by the target, :func:`jaxgait.control.autopilot.anchored_params`);
 * :func:`track`: a target-speed profile (segments of constant v*), one rollout; the speed
   over time and the RMS error of each segment after ``settle_s``.
 """
@@ -88,6 +91,106 @@ def _network_into_table(doc: dict, name: str, gains: dict | None) -> dict:
         "params": g,
         "autopilot": auto,
     }
+
+
+def anchored_preset(anchor_presets, name: str, speeds=None, grade_presets=(), grades=None) -> dict:
+    """One speed-controlled preset whose network parameters are interpolated by the target
+    speed between ``anchor_presets`` (names, paths or documents of network-in-table law
+    presets, e.g. ``spinal tune --gains 'net_*'`` at a constant target each) and, with
+    ``grade_presets`` (one of them trained on level ground), moved with the grade estimate
+    by theirs (:mod:`jaxgait.control.autopilot`, speed and grade anchors).  The anchor
+    speeds are ``speeds`` [m/s] or each preset's constant tuning target (``tuning.v_range``
+    with lo = hi), the grades ``grades`` or each one's ``tuning.grade``; every anchor must
+    share the network and the law's gains."""
+    docs, vecs = _anchor_docs(anchor_presets)
+    gdocs, gvecs = _anchor_docs(grade_presets) if grade_presets else ([], [])
+    if not docs:
+        raise SpinalError("give at least one anchor preset")
+    if speeds is None:
+        speeds = [_constant_target(where, doc) for where, doc in docs]
+    if grades is None:
+        grades = [float((doc.get("tuning") or {}).get("grade", 0.0)) for _, doc in gdocs]
+    if len(speeds) != len(docs) or len(grades) != len(gdocs):
+        raise SpinalError(
+            f"{len(docs)} speed and {len(gdocs)} grade anchor presets but {len(speeds)} "
+            f"speeds and {len(grades)} grades"
+        )
+    law = {k: v for k, v in vecs[0].items() if not k.startswith(NET_PREFIX)}
+    for (where, doc), g in zip(docs + gdocs, vecs + gvecs, strict=True):
+        if doc["network"] != docs[0][1]["network"]:
+            raise SpinalError(f"{where}: its network differs from {docs[0][0]}'s")
+        diff = sorted(k for k in law if g[k] != law[k])
+        if diff:
+            raise SpinalError(f"{where}: its law gains {diff} differ from {docs[0][0]}'s")
+    anchors = _anchor_list(speeds, vecs, "v", "anchor speeds")
+    first = docs[0][1]
+    auto = {
+        "law": "speed",
+        "base_params": anchors[0]["params"],
+        "anchors": anchors,
+        "source": [where for where, _ in docs + gdocs],
+    }
+    text = ", ".join(f"{a['v']:.2f}" for a in anchors) + " m/s"
+    if gdocs:
+        if 0.0 not in [float(g) for g in grades]:
+            raise SpinalError(f"the grade anchors need one at grade 0, got {list(grades)}")
+        auto["grade_anchors"] = _anchor_list(grades, gvecs, "grade", "anchor grades")
+        text += " and grades " + ", ".join(f"{g:.2f}" for g in sorted(grades))
+    if first["autopilot"].get("target_rate") is not None:
+        auto["target_rate"] = first["autopilot"]["target_rate"]
+    return {
+        "model": name,
+        "table": AUTO_SPEED.name,
+        "description": f"speed-controlled network, its FBL parameters interpolated between "
+        f"anchors at {text}",
+        "params": law,
+        "network": first["network"],
+        "autopilot": auto,
+        **{k: first[k] for k in ("v0", "pose") if k in first},
+    }
+
+
+def _anchor_docs(presets) -> tuple[list, list]:
+    """(where, document) and table-value dicts of network-in-table law presets."""
+    docs, vecs = [], []
+    for a in presets:
+        where = str(a.get("model")) if isinstance(a, dict) else str(a)
+        model, vec, doc = (
+            preset_from_dict(a, where=where) if isinstance(a, dict) else load_preset(a)
+        )
+        auto = doc.get("autopilot") or {}
+        if not auto.get("network_in_table", False):
+            raise SpinalError(f"{where}: an anchor must have its network in its table")
+        docs.append((where, doc))
+        vecs.append(dict(zip(models.get_model(model).table.names, map(float, vec), strict=True)))
+    return docs, vecs
+
+
+def _anchor_list(points, vecs, key: str, what: str) -> list[dict]:
+    """[{key: point, "params": network parameters}, ...] in increasing order of the points."""
+    order = np.argsort(points)
+    if np.any(np.diff(np.asarray(points, float)[order]) <= 0):
+        raise SpinalError(f"{what} must differ, got {list(points)}")
+    return [
+        {
+            key: float(points[k]),
+            "params": {
+                n[len(NET_PREFIX) :]: v for n, v in vecs[k].items() if n.startswith(NET_PREFIX)
+            },
+        }
+        for k in order
+    ]
+
+
+def _constant_target(where: str, doc: dict) -> float:
+    """The constant target an anchor preset was trained on (``tuning.v_range`` lo = hi)."""
+    lo, hi = (doc.get("tuning") or {}).get("v_range", (None, None))
+    if lo is None or lo != hi:
+        raise SpinalError(
+            f"{where}: not trained at one constant target (tuning.v_range {lo}, {hi}); "
+            "give --speeds"
+        )
+    return float(lo)
 
 
 def profile_schedules(commands, profiles, segment_s: float):

@@ -298,6 +298,17 @@ def cmd_auto(a) -> dict:
     return {"presets": {"auto": str(path)}}
 
 
+def cmd_anchors(a) -> dict:
+    from jaxgait.spinal.auto import anchored_preset
+
+    speeds = floats(a.speeds, "--speeds") if a.speeds else None
+    grades = floats(a.grades, "--grades") if a.grades else None
+    doc = anchored_preset(a.presets, a.name, speeds, a.grade_presets, grades)
+    path = write_json(Path(a.out_dir), f"{a.name}.json", doc)
+    print(f"wrote {path}: anchors at {[x['v'] for x in doc['autopilot']['anchors']]} m/s")
+    return {"presets": {"anchors": str(path)}}
+
+
 def cmd_track(a) -> dict:
     from jaxgait.spinal.auto import track
     from jaxgait.spinal.figures import plot_tracking
@@ -397,6 +408,17 @@ def _parser() -> argparse.ArgumentParser:
         help="limit how fast the law's target follows v_target [m/s^2] (default: no limit)",
     )
     q.add_argument("--out-dir", default="runs/spinal/models")
+    q = sub.add_parser(
+        "anchors", help="one speed-controlled model from presets trained at constant targets"
+    )
+    q.add_argument("presets", nargs="+", help="network-in-table law presets (spinal tune)")
+    q.add_argument("--name", required=True)
+    q.add_argument("--speeds", default=None, help="v1,v2,... (default: each one's tuning target)")
+    q.add_argument(
+        "--grade-presets", nargs="+", default=[], help="presets trained on constant grades"
+    )
+    q.add_argument("--grades", default=None, help="g1,g2,... (default: each one's tuning grade)")
+    q.add_argument("--out-dir", default="runs/spinal/models")
     q = sub.add_parser("track", help="speed tracking of a target profile")
     q.add_argument("preset")
     q.add_argument("--profile", default="1.0,1.5,0.7,1.3", help="target speeds [m/s]")
@@ -412,6 +434,7 @@ COMMANDS = {
     "patterns": cmd_patterns,
     "build": cmd_build,
     "compare": cmd_compare,
+    "anchors": cmd_anchors,
     "robust": cmd_robust,
     "search": cmd_search,
     "auto": cmd_auto,

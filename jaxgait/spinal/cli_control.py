@@ -65,6 +65,8 @@ def cmd_tune(a) -> dict:
         profiles=a.profiles,
         slope_s=a.slope,
         slope_target=a.slope_target,
+        grade=a.grade,
+        grade_ramp_m=a.grade_ramp,
         popsize=a.popsize,
         generations=a.generations,
         sigma=a.sigma,
@@ -300,6 +302,10 @@ def add_parsers(sub) -> None:
     q.add_argument("--profiles", type=int, default=3, help="profiles per generation (3)")
     q.add_argument("--slope", type=float, default=0.0, help="increasing-slope walk [s] (0: none)")
     q.add_argument("--slope-target", type=float, default=1.2, help="its target speed [m/s]")
+    q.add_argument(
+        "--grade", type=float, default=0.0, help="track on this constant grade, rise/run (0: flat)"
+    )
+    q.add_argument("--grade-ramp", type=float, default=10.0, help="level to --grade over [m] (10)")
     q.add_argument("--popsize", type=int, default=8)
     q.add_argument("--generations", type=int, default=10)
     q.add_argument("--sigma", type=float, default=0.1, help="CMA-ES step, fraction of ranges")

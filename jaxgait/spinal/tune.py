@@ -5,7 +5,9 @@ The law of :mod:`jaxgait.control.autopilot` has its gains as a parameter table w
 them with CMA-ES (:class:`jaxgait.optim.CMAES`, evosax) on randomised tasks, the network and
 its FBL parameters fixed:
 
-* **speed tracking on flat ground**: ``profiles`` random target profiles per generation
+* **speed tracking on flat ground** (or, with ``grade`` != 0, on ground that rises from level
+  to that constant grade over ``grade_ramp_m`` metres, for a network trained to hold a
+  grade): ``profiles`` random target profiles per generation
   (``segments`` segments of ``segment_s`` seconds, each target uniform in ``v_range``), the
   same profiles for every candidate of a generation (common random numbers), new ones every
   generation.  Cost of one rollout [m/s]: the RMS of v - v* over the settled samples (each
@@ -56,6 +58,8 @@ class Tuning:
     slope_s: float = 0.0
     slope_target: float = 1.2
     slope_weight: float = 1.0
+    grade: float = 0.0
+    grade_ramp_m: float = 10.0
     popsize: int = 8
     generations: int = 10
     sigma: float = 0.1
@@ -71,6 +75,11 @@ class Tuning:
             raise SpinalError(f"need 0 <= settle_s < segment_s, got {self.settle_s}")
         if self.popsize < 2 or self.generations < 0:
             raise SpinalError("popsize must be >= 2 and generations >= 0")
+        if not -0.5 <= self.grade <= 0.5 or self.grade_ramp_m <= 0:
+            raise SpinalError(
+                f"need a grade in [-0.5, 0.5] and a ramp > 0 m, got {self.grade}, "
+                f"{self.grade_ramp_m}"
+            )
         if self.slope_s < 0 or self.sigma <= 0:
             raise SpinalError("slope_s must be >= 0 and sigma > 0")
         if not self.tune:
@@ -140,7 +149,13 @@ class Tasks:
         v0 = float(doc.get("v0", sim.SimConfig.v0))
         total = tcfg.segments * tcfg.segment_s
         self.flat_cfg = sim.SimConfig(duration=total, log_dt=LOG_DT, v0=v0, max_events=1024)
-        self.flat = envs.make_env("flat", jax.random.PRNGKey(0))
+        if tcfg.grade == 0:
+            self.flat = envs.make_env("flat", jax.random.PRNGKey(0))
+        else:
+            gcfg = envs.get_env_config(
+                "increasing_slope", final_grade=tcfg.grade, length=tcfg.grade_ramp_m
+            )
+            self.flat = envs.make_env(gcfg, jax.random.PRNGKey(0))
         if tcfg.slope_s > 0:
             self.slope_cfg = sim.SimConfig(
                 duration=tcfg.slope_s, log_dt=LOG_DT, v0=v0, max_events=1024
