@@ -67,6 +67,22 @@ def test_bad_tuning_settings_are_refused():
         Tasks("3fbl_auto", Tuning(tune=("k_zz",)))
     with pytest.raises(SpinalError, match="no v_target"):
         Tasks("3fbl_walk", Tuning())
+    with pytest.raises(SpinalError, match="grade in"):
+        Tuning(grade=0.8)
+
+
+def test_tracking_on_a_grade_runs_on_ground_that_rises_to_it():
+    """``Tuning(grade=g)``: the tracking ground is level to 2 m, then rises to grade g over
+    ``grade_ramp_m`` and keeps it (the grade anchors' training ground)."""
+    from jaxgait.spinal.tune import Tasks
+    from jaxgait.world.terrain import Terrain
+
+    t = Tasks("3fbl_auto", Tuning(grade=0.1, grade_ramp_m=8.0)).track_env.terrain
+    h = [float(Terrain.height(t, x)) for x in (1.0, 10.0, 20.0, 30.0)]
+    assert h[0] == 0.0
+    assert h[1] == pytest.approx(0.5 * 0.1 / 8.0 * 8.0**2, rel=1e-3)  # the ramp's rise
+    np.testing.assert_allclose(np.diff(h[1:]), 1.0, rtol=1e-3)  # 10 % over 10 m
+    assert float(Terrain.height(Tasks("3fbl_auto", Tuning()).track_env.terrain, 20.0)) == 0.0
 
 
 @pytest.mark.slow

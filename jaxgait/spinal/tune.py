@@ -150,12 +150,12 @@ class Tasks:
         total = tcfg.segments * tcfg.segment_s
         self.flat_cfg = sim.SimConfig(duration=total, log_dt=LOG_DT, v0=v0, max_events=1024)
         if tcfg.grade == 0:
-            self.flat = envs.make_env("flat", jax.random.PRNGKey(0))
+            self.track_env = envs.make_env("flat", jax.random.PRNGKey(0))
         else:
             gcfg = envs.get_env_config(
                 "increasing_slope", final_grade=tcfg.grade, length=tcfg.grade_ramp_m
             )
-            self.flat = envs.make_env(gcfg, jax.random.PRNGKey(0))
+            self.track_env = envs.make_env(gcfg, jax.random.PRNGKey(0))
         if tcfg.slope_s > 0:
             self.slope_cfg = sim.SimConfig(
                 duration=tcfg.slope_s, log_dt=LOG_DT, v0=v0, max_events=1024
@@ -179,7 +179,7 @@ class Tasks:
         dtype = jnp.float32
         p_rep = jnp.asarray(np.repeat(vecs, R, 0), dtype)
         sched = profile_schedules(cmds, np.tile(profiles, (P, 1)), tc.segment_s)
-        env_b = jax.tree.map(lambda a: jnp.broadcast_to(a, (P * R, *jnp.shape(a))), self.flat)
+        env_b = jax.tree.map(lambda a: jnp.broadcast_to(a, (P * R, *jnp.shape(a))), self.track_env)
         tr, _, sm, _ = _rollout(self.model, self.flat_cfg)(p_rep, env_b, sched)
         cost, rms = tracking_cost(
             np.asarray(tr.t),
