@@ -87,6 +87,21 @@ def test_grade_estimate_from_the_feet_at_touchdown():
         assert float(out[c.name]) == pytest.approx(want, abs=1e-6), c.name
 
 
+def test_contact_grade_reads_the_feet_lowest_points_by_hand():
+    """On a 10 % slope (z = 0.1 x) a right foot landing on its forefoot (heel 3.5 cm up)
+    and a left foot in heel-off: the chord of the lowest points reads 0.10, the heel-to-ball
+    estimate 0.19 (its bias for such a landing)."""
+    from jaxgait.control.autopilot import contact_grade
+
+    feet = jnp.array([[1.0, 0.15], [1.15, 0.115], [0.3, 0.06], [0.45, 0.045]])
+    td = jnp.array([True, False])
+    assert float(contact_grade(feet, td, 0.0, 1.0)) == pytest.approx(0.10, abs=1e-6)
+    assert float(grade_at_touchdown(feet, td, 0.0, 1.0)) == pytest.approx(0.105 / 0.55, abs=1e-6)
+    # filtered as the other estimate; no touchdown, no change
+    assert float(contact_grade(feet, td, 0.02, 0.5)) == pytest.approx(0.06, abs=1e-6)
+    assert float(contact_grade(feet, jnp.array([False, False]), 0.02, 0.5)) == pytest.approx(0.02)
+
+
 def test_targets_are_limited_to_the_speeds_held():
     p = {"v_min": 1.1, "v_max": 1.3}
     got = [float(target_speed(p, v)) for v in (0.7, 1.1, 1.2, 1.3, 1.8)]

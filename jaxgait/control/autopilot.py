@@ -44,8 +44,13 @@ step 0, so a step of the command moves the network's gains along a ramp.
 
 **Grade anchors.**  In the same way ``grade_anchors`` carry parameter vectors r_j trained to
 hold a walk on a constant grade g_j (one of them at g = 0, the base r_0); the network then runs
-with p(v*) + r(g) - r_0, r(g) their interpolation at the law's grade estimate g (step 3), so
-the gains change with the ground as the trained climbers' do (the change measured at the
+with p(v*) + r(g_c) - r_0, r(g_c) their interpolation at the grade g_c felt through the
+feet's lowest points: at every touchdown, the chord from the lower of the landing foot's heel
+and ball to the lower of the other foot's, filtered as step 3's (:func:`contact_grade`).  Step
+3's estimate reads the landing foot's heel, which a gait that lands flat-footed or on its
+forefoot holds above the ground: on level ground it reads +0.05 to +0.09 for 3FBL, a bias
+its trained slope rule has absorbed (its own gains keep that estimate); g_c reads 0 there.
+So the gains change with the ground as the trained climbers' do (the change measured at the
 grade anchors' own target speed, added to the speed anchors' gains at any other).
 
 The law's gains are its parameter table (:data:`AUTO_SPEED`, what an optimiser searches); the
@@ -158,13 +163,15 @@ class AutoSettings:
 @struct.dataclass
 class AutoState:
     """The wrapped controller's state, the filtered speed v [m/s], the integral I [m],
-    the grade estimate g [-] and the rate-limited target [m/s]."""
+    the grade estimate g [-], the rate-limited target [m/s] and the contact-point grade
+    g_c [-] (:func:`contact_grade`)."""
 
     inner: object
     v: jax.Array
     integral: jax.Array
     grade: jax.Array
     target: jax.Array
+    ground: jax.Array
 
 
 def grade_at_touchdown(feet, touchdown, grade, k_g):
@@ -176,6 +183,20 @@ def grade_at_touchdown(feet, touchdown, grade, k_g):
     dx = heel[:, 0] - ball[:, 0]
     dx = jnp.where(jnp.abs(dx) < 0.05, jnp.where(dx < 0, -0.05, 0.05), dx)
     g_td = (heel[:, 1] - ball[:, 1]) / dx
+    for leg in range(2):
+        grade = jnp.where(touchdown[leg], grade + k_g * (g_td[leg] - grade), grade)
+    return grade
+
+
+def contact_grade(feet, touchdown, grade, k_g):
+    """The grade estimate of the grade anchors after this step's touchdowns: the chord from
+    the lower (in z) of the landing foot's heel and ball to the lower of the other foot's,
+    filtered as :func:`grade_at_touchdown` (feet as there)."""
+    pts = feet.reshape(2, 2, 2)  # (leg, heel/ball, x/z)
+    low = jnp.take_along_axis(pts, jnp.argmin(pts[:, :, 1], axis=1)[:, None, None], axis=1)[:, 0]
+    dx = low[:, 0] - low[::-1, 0]
+    dx = jnp.where(jnp.abs(dx) < 0.05, jnp.where(dx < 0, -0.05, 0.05), dx)
+    g_td = (low[:, 1] - low[::-1, 1]) / dx
     for leg in range(2):
         grade = jnp.where(touchdown[leg], grade + k_g * (g_td[leg] - grade), grade)
     return grade
@@ -227,7 +248,8 @@ def auto_init(ctrl: Controller, sens: Sensors, dt: float) -> AutoState:
     inner = ctrl.settings.inner
     v0 = sens.com_vel[0]
     z = jnp.zeros_like(v0)
-    return AutoState(inner=inner.init(inner, sens, dt), v=v0, integral=z, grade=z, target=v0)
+    inner_state = inner.init(inner, sens, dt)
+    return AutoState(inner=inner_state, v=v0, integral=z, grade=z, target=v0, ground=z)
 
 
 def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: dict, dt):
@@ -240,6 +262,7 @@ def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: d
     e = v_target - v
     integral = jnp.clip(s.integral + dt * e, -p["i_max"], p["i_max"])
     grade = grade_at_touchdown(sens.feet, sens.touchdown, s.grade, p["k_g"])
+    ground = contact_grade(sens.feet, sens.touchdown, s.ground, p["k_g"])
     sched = {c.name: command[c.name] for c in inner.commands}
     cmd = speed_commands(p, v_target, v, integral, sched, inner.commands, grade)
     if st.anchor_speeds is not None:
@@ -251,10 +274,12 @@ def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: d
         q = inner.table.unpack(jnp.asarray(st.inner_params, sens.f_norm.dtype))
     if st.grade_points is not None:
         rows = jnp.asarray(st.grade_deltas, sens.f_norm.dtype)
-        d = anchored_params(grade, st.grade_points, rows)
+        d = anchored_params(ground, st.grade_points, rows)
         q = {n: q[n] + d[i] for i, n in enumerate(inner.table.names)}
     stim, inner_state = inner.step(inner, q, sens, s.inner, cmd, dt)
-    state = AutoState(inner=inner_state, v=v, integral=integral, grade=grade, target=v_target)
+    state = AutoState(
+        inner=inner_state, v=v, integral=integral, grade=grade, target=v_target, ground=ground
+    )
     return stim, state
 
 
