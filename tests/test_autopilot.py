@@ -336,3 +336,27 @@ def test_speed_anchors_drive_the_network_they_interpolate(tmp_path):
     finally:
         for n in ("t_anc_a", "t_anc_b", "t_anc_c", "t_anc_d"):
             presets.forget_network(n)
+
+
+@pytest.mark.slow
+def test_3fbl_auto_anchored_walks_slower_than_its_networks_allow(tmp_path):
+    """The shipped speed-anchored model holds 0.9 m/s, which the network trained with its law
+    over 0.9-1.6 m/s (``3fbl_auto_wide``, targets unclipped) walks at 1.15 m/s or falls
+    (experiments/spinal/README.md, "Speed and grade anchors"); a target beyond its anchors
+    is clipped to the speeds it holds instead of driving it to a fall."""
+    from jaxgait.spinal.auto import speed_range
+
+    res = speed_range("3fbl_auto_anchored", [0.9, 1.5, 1.8], duration_s=20.0, measure_s=8.0)
+    assert res["held"][:2] == [True, True], res["speed_mps"]
+    assert not any(res["fell"]) and abs(res["speed_mps"][2] - 1.5) < 0.1
+    wide = presets.load_preset("3fbl_auto_wide")[2]
+    doc = json.loads(json.dumps(wide))
+    doc["model"] = "t_wide_open"
+    doc["params"]["v_min"] = 0.2
+    path = tmp_path / "t_wide_open.json"
+    path.write_text(json.dumps(doc))
+    try:
+        slow = speed_range(path, [0.9], duration_s=20.0, measure_s=8.0)
+    finally:
+        presets.forget_network("t_wide_open")
+    assert not slow["held"][0], slow["speed_mps"]

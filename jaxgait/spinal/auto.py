@@ -236,6 +236,7 @@ def track(preset, profile, segment_s: float = 20.0, settle_s: float = 5.0, env=N
     v = moving_speed(t, x, cfg.log_dt)
     v[~alive] = np.nan
     target = np.asarray([profile[min(int(ti // segment_s), len(profile) - 1)] for ti in t])
+    target[~alive] = np.nan  # the log's rows after a fall are not times of the walk
     rms = []
     for k in range(len(profile)):
         w = (t >= k * segment_s + settle_s) & (t < (k + 1) * segment_s)

@@ -304,6 +304,11 @@ def cmd_anchors(a) -> dict:
     speeds = floats(a.speeds, "--speeds") if a.speeds else None
     grades = floats(a.grades, "--grades") if a.grades else None
     doc = anchored_preset(a.presets, a.name, speeds, a.grade_presets, grades)
+    gains = _name_values(a.gain, "--gain")
+    unknown = sorted(set(gains) - set(doc["params"]))
+    if unknown:
+        raise SpinalError(f"unknown speed-law gains {unknown}; known: {list(doc['params'])}")
+    doc["params"].update(gains)
     path = write_json(Path(a.out_dir), f"{a.name}.json", doc)
     print(f"wrote {path}: anchors at {[x['v'] for x in doc['autopilot']['anchors']]} m/s")
     return {"presets": {"anchors": str(path)}}
@@ -418,6 +423,9 @@ def _parser() -> argparse.ArgumentParser:
         "--grade-presets", nargs="+", default=[], help="presets trained on constant grades"
     )
     q.add_argument("--grades", default=None, help="g1,g2,... (default: each one's tuning grade)")
+    q.add_argument(
+        "--gain", action="append", default=[], metavar="NAME=VALUE", help="a law gain to set"
+    )
     q.add_argument("--out-dir", default="runs/spinal/models")
     q = sub.add_parser("track", help="speed tracking of a target profile")
     q.add_argument("preset")
