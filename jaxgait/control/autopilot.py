@@ -49,7 +49,8 @@ feet's lowest points: at every touchdown, the chord from the lower of the landin
 and ball to the lower of the other foot's, filtered as step 3's (:func:`contact_grade`).  Step
 3's estimate reads the landing foot's heel, which a gait that lands flat-footed or on its
 forefoot holds above the ground: on level ground it reads +0.05 to +0.09 for 3FBL, a bias
-its trained slope rule has absorbed (its own gains keep that estimate); g_c reads 0 there.
+its trained slope rule has absorbed (its own gains keep that estimate); g_c reads about
+0.01 there.
 So the gains change with the ground as the trained climbers' do (the change measured at the
 grade anchors' own target speed, added to the speed anchors' gains at any other).
 
@@ -148,7 +149,9 @@ V_TARGET = Command("v_target", 1.3, "m/s", "target walking speed", 0.2, 3.0)
 
 @dataclass(frozen=True, eq=False)
 class AutoSettings:
-    """Static data: the wrapped network controller and its fixed parameters (D,)."""
+    """Static data: the wrapped network controller and its fixed parameters (D,); the
+    speed anchors' speeds (K,) [m/s] and parameter rows (K, D), and the grade anchors'
+    grades (G,) and their rows less the level one's (G, D), or None without them."""
 
     inner: Controller
     inner_params: np.ndarray
