@@ -181,18 +181,12 @@ def _network_in_table(auto, where: str) -> bool:
 def _autopilot(auto, inner, model: str, where: str):
     """The automatic speed controller of a preset's ``autopilot`` entry around ``inner``."""
     from jaxgait.control.autopilot import speed_controller
-    from jaxgait.control.fbl import FBL
 
     if not isinstance(auto, dict) or auto.get("law") != "speed":
         raise PresetError(f'{where}: \'autopilot\' must be {{"law": "speed", "base_params": ...}}')
-    base = auto.get("base_params")
-    if not isinstance(base, dict) or sorted(base) != sorted(FBL.names):
-        raise PresetError(f"{where}: autopilot.base_params must give all {FBL.size} FBL parameters")
-    vec = FBL.pack({k: _number(where, k, v) for k, v in base.items()})
-    try:
-        FBL.check(vec, where=f"{where} (autopilot.base_params)")
-    except ValueError as e:
-        raise PresetError(str(e)) from None
+    vec = _fbl_vector(
+        auto.get("base_params"), where, "autopilot.base_params", f"{where} (autopilot.base_params)"
+    )
     rate = auto.get("target_rate")
     if rate is not None and (
         isinstance(rate, bool) or not isinstance(rate, (int, float)) or rate <= 0
@@ -218,8 +212,6 @@ def _anchors(auto: dict, where: str, entry: str = "anchors", key: str = "v"):
     """The ``autopilot.anchors`` entry, [{"v": v_k [m/s], "params": {FBL name: value}}, ...]
     (or ``grade_anchors``, [{"grade": g_j, "params": ...}, ...]) as (v_k, FBL vector) pairs,
     each vector checked against FBL's ranges (None when absent)."""
-    from jaxgait.control.fbl import FBL
-
     raw = auto.get(entry)
     if raw is None:
         return None
@@ -232,16 +224,24 @@ def _anchors(auto: dict, where: str, entry: str = "anchors", key: str = "v"):
         at = f"{where} (autopilot.{entry}[{k}])"
         if not isinstance(a, dict) or set(a) != {key, "params"}:
             raise PresetError(f'{at}: an anchor is {{"{key}": number, "params": {{...}}}}')
-        q = a["params"]
-        if not isinstance(q, dict) or sorted(q) != sorted(FBL.names):
-            raise PresetError(f"{at}: params must give all {FBL.size} FBL parameters")
-        vec = FBL.pack({n: _number(at, n, x) for n, x in q.items()})
-        try:
-            FBL.check(vec, where=at)
-        except ValueError as e:
-            raise PresetError(str(e)) from None
-        out.append((_number(at, key, a[key]), vec))
+        out.append((_number(at, key, a[key]), _fbl_vector(a["params"], at, "params", at)))
     return out
+
+
+def _fbl_vector(q, where: str, entry: str, check_at: str):
+    """The FBL vector of a {name: value} entry that must give every FBL parameter, each a
+    number within FBL's range (errors name ``entry`` after ``where``; range errors
+    ``check_at``)."""
+    from jaxgait.control.fbl import FBL
+
+    if not isinstance(q, dict) or sorted(q) != sorted(FBL.names):
+        raise PresetError(f"{where}: {entry} must give all {FBL.size} FBL parameters")
+    vec = FBL.pack({n: _number(where, n, x) for n, x in q.items()})
+    try:
+        FBL.check(vec, where=check_at)
+    except ValueError as e:
+        raise PresetError(str(e)) from None
+    return vec
 
 
 def defining_entries(name: str) -> dict:

@@ -167,7 +167,7 @@ class AutoSettings:
 class AutoState:
     """The wrapped controller's state, the filtered speed v [m/s], the integral I [m],
     the grade estimate g [-], the rate-limited target [m/s] and the contact-point grade
-    g_c [-] (:func:`contact_grade`)."""
+    g_c [-] (:func:`contact_grade`; kept at 0 without grade anchors)."""
 
     inner: object
     v: jax.Array
@@ -177,18 +177,25 @@ class AutoState:
     ground: jax.Array
 
 
+def _chord_at_touchdown(land, other, touchdown, grade, k_g):
+    """The filtered grade of the chord from each leg's landing point ``land`` (2, 2) to the
+    other leg's point ``other`` (2, 2) (x, z) [m]: g <- g + k_g (g_td - g) at each touchdown
+    (dx kept at least 5 cm)."""
+    dx = land[:, 0] - other[:, 0]
+    dx = jnp.where(jnp.abs(dx) < 0.05, jnp.where(dx < 0, -0.05, 0.05), dx)
+    g_td = (land[:, 1] - other[:, 1]) / dx
+    for leg in range(2):
+        grade = jnp.where(touchdown[leg], grade + k_g * (g_td[leg] - grade), grade)
+    return grade
+
+
 def grade_at_touchdown(feet, touchdown, grade, k_g):
     """Step 3 of the module docstring: the grade estimate after this step's touchdowns.
 
     feet: (4, 2) heel_r, ball_r, heel_l, ball_l (x, z) [m]; touchdown: (2,) bool."""
     heel = feet[jnp.array([0, 2])]  # (2, 2) heel of the leg touching down
     ball = feet[jnp.array([3, 1])]  # (2, 2) ball of the other leg
-    dx = heel[:, 0] - ball[:, 0]
-    dx = jnp.where(jnp.abs(dx) < 0.05, jnp.where(dx < 0, -0.05, 0.05), dx)
-    g_td = (heel[:, 1] - ball[:, 1]) / dx
-    for leg in range(2):
-        grade = jnp.where(touchdown[leg], grade + k_g * (g_td[leg] - grade), grade)
-    return grade
+    return _chord_at_touchdown(heel, ball, touchdown, grade, k_g)
 
 
 def contact_grade(feet, touchdown, grade, k_g):
@@ -197,12 +204,7 @@ def contact_grade(feet, touchdown, grade, k_g):
     filtered as :func:`grade_at_touchdown` (feet as there)."""
     pts = feet.reshape(2, 2, 2)  # (leg, heel/ball, x/z)
     low = jnp.take_along_axis(pts, jnp.argmin(pts[:, :, 1], axis=1)[:, None, None], axis=1)[:, 0]
-    dx = low[:, 0] - low[::-1, 0]
-    dx = jnp.where(jnp.abs(dx) < 0.05, jnp.where(dx < 0, -0.05, 0.05), dx)
-    g_td = (low[:, 1] - low[::-1, 1]) / dx
-    for leg in range(2):
-        grade = jnp.where(touchdown[leg], grade + k_g * (g_td[leg] - grade), grade)
-    return grade
+    return _chord_at_touchdown(low, low[::-1], touchdown, grade, k_g)
 
 
 def target_speed(p: dict, v_target, previous=None, dt=0.0, a_max=None):
@@ -265,7 +267,6 @@ def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: d
     e = v_target - v
     integral = jnp.clip(s.integral + dt * e, -p["i_max"], p["i_max"])
     grade = grade_at_touchdown(sens.feet, sens.touchdown, s.grade, p["k_g"])
-    ground = contact_grade(sens.feet, sens.touchdown, s.ground, p["k_g"])
     sched = {c.name: command[c.name] for c in inner.commands}
     cmd = speed_commands(p, v_target, v, integral, sched, inner.commands, grade)
     if st.anchor_speeds is not None:
@@ -275,7 +276,9 @@ def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: d
         q = {n: p[NET_PREFIX + n] for n in inner.table.names}
     else:
         q = inner.table.unpack(jnp.asarray(st.inner_params, sens.f_norm.dtype))
+    ground = s.ground  # read only by grade anchors: estimated only for them
     if st.grade_points is not None:
+        ground = contact_grade(sens.feet, sens.touchdown, s.ground, p["k_g"])
         rows = jnp.asarray(st.grade_deltas, sens.f_norm.dtype)
         d = anchored_params(ground, st.grade_points, rows)
         q = {n: q[n] + d[i] for i, n in enumerate(inner.table.names)}
@@ -311,8 +314,10 @@ def speed_controller(
         raise ValueError(
             f"{name}: inner parameters need {inner.table.size} values, got {vec.shape}"
         )
-    speeds, rows = _check_anchors(name, inner, anchors, network_in_table)
-    grades, deltas = _check_anchors(name, inner, grade_anchors, False, "grade")
+    if anchors is not None and network_in_table:
+        raise ValueError(f"{name}: speed anchors and network_in_table exclude each other")
+    speeds, rows = _check_anchors(name, inner, anchors, "speed")
+    grades, deltas = _check_anchors(name, inner, grade_anchors, "grade")
     if grades is not None:
         if 0.0 not in grades:
             raise ValueError(f"{name}: grade anchors need one at grade 0, got {grades.tolist()}")
@@ -341,12 +346,10 @@ def speed_controller(
     )
 
 
-def _check_anchors(name: str, inner: Controller, anchors, network_in_table: bool, what="speed"):
+def _check_anchors(name: str, inner: Controller, anchors, what: str):
     """(points (K,), rows (K, D)) of an ``anchors`` argument, checked; (None, None) without."""
     if anchors is None:
         return None, None
-    if network_in_table:
-        raise ValueError(f"{name}: speed anchors and network_in_table exclude each other")
     anchors = list(anchors)
     if not anchors:
         raise ValueError(f"{name}: {what} anchors need at least one (point, parameters) pair")

@@ -93,7 +93,9 @@ def _network_into_table(doc: dict, name: str, gains: dict | None) -> dict:
     }
 
 
-def anchored_preset(anchor_presets, name: str, speeds=None, grade_presets=(), grades=None) -> dict:
+def anchored_preset(
+    anchor_presets, name: str, speeds=None, grade_presets=(), grades=None, gains=None
+) -> dict:
     """One speed-controlled preset whose network parameters are interpolated by the target
     speed between ``anchor_presets`` (names, paths or documents of network-in-table law
     presets, e.g. ``spinal tune --gains 'net_*'`` at a constant target each) and, with
@@ -101,7 +103,7 @@ def anchored_preset(anchor_presets, name: str, speeds=None, grade_presets=(), gr
     by theirs (:mod:`jaxgait.control.autopilot`, speed and grade anchors).  The anchor
     speeds are ``speeds`` [m/s] or each preset's constant tuning target (``tuning.v_range``
     with lo = hi), the grades ``grades`` or each one's ``tuning.grade``; every anchor must
-    share the network and the law's gains."""
+    share the network and the law's gains, of which ``gains`` (name -> value) replace some."""
     docs, vecs = _anchor_docs(anchor_presets)
     gdocs, gvecs = _anchor_docs(grade_presets) if grade_presets else ([], [])
     if not docs:
@@ -143,7 +145,7 @@ def anchored_preset(anchor_presets, name: str, speeds=None, grade_presets=(), gr
         "table": AUTO_SPEED.name,
         "description": f"speed-controlled network, its FBL parameters interpolated between "
         f"anchors at {text}",
-        "params": law,
+        "params": _with_gains(law, gains),
         "network": first["network"],
         "autopilot": auto,
         **{k: first[k] for k in ("v0", "pose") if k in first},

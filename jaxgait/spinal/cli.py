@@ -303,12 +303,8 @@ def cmd_anchors(a) -> dict:
 
     speeds = floats(a.speeds, "--speeds") if a.speeds else None
     grades = floats(a.grades, "--grades") if a.grades else None
-    doc = anchored_preset(a.presets, a.name, speeds, a.grade_presets, grades)
     gains = _name_values(a.gain, "--gain")
-    unknown = sorted(set(gains) - set(doc["params"]))
-    if unknown:
-        raise SpinalError(f"unknown speed-law gains {unknown}; known: {list(doc['params'])}")
-    doc["params"].update(gains)
+    doc = anchored_preset(a.presets, a.name, speeds, a.grade_presets, grades, gains)
     path = write_json(Path(a.out_dir), f"{a.name}.json", doc)
     print(f"wrote {path}: anchors at {[x['v'] for x in doc['autopilot']['anchors']]} m/s")
     return {"presets": {"anchors": str(path)}}

@@ -148,7 +148,7 @@ class Tasks:
         self.upper = np.asarray(table.upper, float)[self.idx]
         v0 = float(doc.get("v0", sim.SimConfig.v0))
         total = tcfg.segments * tcfg.segment_s
-        self.flat_cfg = sim.SimConfig(duration=total, log_dt=LOG_DT, v0=v0, max_events=1024)
+        self.track_cfg = sim.SimConfig(duration=total, log_dt=LOG_DT, v0=v0, max_events=1024)
         if tcfg.grade == 0:
             self.track_env = envs.make_env("flat", jax.random.PRNGKey(0))
         else:
@@ -180,7 +180,7 @@ class Tasks:
         p_rep = jnp.asarray(np.repeat(vecs, R, 0), dtype)
         sched = profile_schedules(cmds, np.tile(profiles, (P, 1)), tc.segment_s)
         env_b = jax.tree.map(lambda a: jnp.broadcast_to(a, (P * R, *jnp.shape(a))), self.track_env)
-        tr, _, sm, _ = _rollout(self.model, self.flat_cfg)(p_rep, env_b, sched)
+        tr, _, sm, _ = _rollout(self.model, self.track_cfg)(p_rep, env_b, sched)
         cost, rms = tracking_cost(
             np.asarray(tr.t),
             np.asarray(tr.com)[..., 0],
