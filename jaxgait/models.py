@@ -33,6 +33,7 @@ from jaxgait.control.fblplus_bal import FBLPLUS_BAL_CONTROLLER, FBLPLUS_BAL_RUN_
 from jaxgait.control.gait import GaitConfig
 from jaxgait.control.gh2010 import GH2010_CONTROLLER
 from jaxgait.control.interface import Controller
+from jaxgait.control.speed_lean import speed_regulated
 from jaxgait.control.spinal import FBL_NET, FBLPLUS_NET, spinal_controller
 from jaxgait.control.wang import WANG_CONTROLLER, WANG_RUN_CONTROLLER
 from jaxgait.core.params import ParamTable
@@ -133,6 +134,15 @@ register(planar_spec(WANG_RUN_CONTROLLER))
 register(planar_spec(FBL_ANKLE_CONTROLLER))
 register(planar_spec(FBLPLUS_BAL_CONTROLLER))
 register(planar_spec(FBLPLUS_BAL_RUN_CONTROLLER))
+register(
+    planar_spec(
+        speed_regulated(
+            FBLPLUS_BAL_RUN_CONTROLLER,
+            "fblplus_bal_run_sr",
+            "fblplus_bal_run with its speed regulated through the trunk-lean reference",
+        )
+    )
+)
 
 
 def _gh2010_build(timestep=None):

@@ -1,0 +1,84 @@
+"""A grid of the lean speed regulator's gains on a running preset, in one batch.
+
+Lifts a ``fblplus_bal_run`` preset to ``fblplus_bal_run_sr`` (the same gains plus the
+regulator's v_reg, k_vp, k_vi, tau_vr), rolls every combination out on flat ground at once
+(``vmap``) and prints, per setting, how long it ran, its speed over successive windows and
+its flight fraction; writes the table as JSON (experiments/running/README.md, "A speed
+regulator").  Usage::
+
+    ./jg python experiments/running/speed_lean/grid.py PRESET --duration 40 \
+        --v-reg 2.0,2.5 --k-vp 0,0.01,0.02,0.05 --k-vi 0,0.005,0.01 --out FILE.json
+"""
+
+import argparse
+import itertools
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxgait import models, sim
+from jaxgait.control.speed_lean import REGULATOR_NAMES
+from jaxgait.presets import load_preset
+from jaxgait.world import envs
+
+
+def floats(s):
+    return [float(x) for x in s.split(",")]
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("preset")
+    ap.add_argument("--model", default="fblplus_bal_run_sr")
+    ap.add_argument("--duration", type=float, default=40.0)
+    ap.add_argument("--v0", type=float, default=None)
+    ap.add_argument("--v-reg", type=floats, default=[2.5])
+    ap.add_argument("--k-vp", type=floats, default=[0.0, 0.01, 0.02, 0.05])
+    ap.add_argument("--k-vi", type=floats, default=[0.0, 0.005, 0.01])
+    ap.add_argument("--tau", type=floats, default=[1.0])
+    ap.add_argument("--i-max", type=floats, default=[2.0])
+    ap.add_argument("--window", type=float, default=5.0)
+    ap.add_argument("--out", default=None)
+    a = ap.parse_args(argv)
+
+    _, _, doc = load_preset(a.preset)
+    mdl = models.get_model(a.model)
+    base = dict(doc["params"])
+    combos = list(itertools.product(a.v_reg, a.k_vp, a.k_vi, a.tau, a.i_max))
+    vecs = []
+    for c in combos:
+        p = {**base, **dict(zip(REGULATOR_NAMES, c, strict=True))}
+        vecs.append(mdl.table.pack(p))
+    params = jnp.asarray(np.asarray(vecs, np.float32))
+    v0 = a.v0 if a.v0 is not None else doc.get("v0", 1.3)
+    cfg = sim.SimConfig(duration=a.duration, v0=float(v0), pose=doc.get("pose", sim.SimConfig.pose))
+    env = envs.make_env(envs.get_env_config("flat"), jax.random.PRNGKey(0))
+    envb = jax.tree.map(lambda x: jnp.broadcast_to(x, (len(vecs),) + jnp.shape(x)), env)
+    trace, events, summary, _ = sim.make_rollout(mdl, cfg)(params, envb)
+    vx = np.asarray(trace.com_vel[..., 0])
+    rows = []
+    for i, c in enumerate(combos):
+        dur = float(summary.duration[i])
+        r = dict(
+            zip(REGULATOR_NAMES, c, strict=True),
+            duration_s=dur,
+            distance_m=float(summary.distance[i]),
+            fell=bool(summary.fell[i]),
+        )
+        n = int(round(a.window / cfg.log_dt))
+        alive = int(dur / cfg.log_dt)
+        r["speed_windows"] = [
+            round(float(vx[i, k : min(k + n, alive)].mean()), 3)
+            for k in range(0, alive, n)
+            if k + n // 2 < alive
+        ]
+        rows.append(r)
+        print(json.dumps(r))
+    if a.out:
+        json.dump(rows, open(a.out, "w"), indent=1)
+
+
+if __name__ == "__main__":
+    main()

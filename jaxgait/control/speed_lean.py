@@ -1,0 +1,118 @@
+"""Speed regulation through the trunk-lean reference (a wrapper for reflex controllers).
+
+The FBL+ runners found under body-weight support (``experiments/running``) run without it
+for 10-20 s and then fall backwards: their forward speed decays steadily, about 0.1 m/s per
+second, from 2.5 m/s to a stop.  Nothing in FBL or FBL+ regulates the speed; the trunk-lean
+reference theta_ref sets it (a reference 0.005 rad further forward accelerates such a
+runner, 0.005 rad further back decelerates it), as a runner leans into a faster pace.
+:func:`speed_regulated` closes that loop with a PI law on the lean command every step:
+
+    v' = (v_com - v) / tau_vr                          (the speed filtered over a stride) [m/s]
+    e = v_reg - v,   I' = e, I clamped to [-i_max, i_max]                                   [m]
+    lean_offset <- lean_offset + clip(k_vp e + k_vi I, -lean_max, lean_max)               [rad]
+
+(positive offsets lean forwards; ``lean_offset`` is the reflex laws' command added to
+theta_ref, :func:`jaxgait.control.fbl.with_commands`).  The five gains v_reg, k_vp, k_vi,
+tau_vr and i_max are entries of the wrapped controller's table (:data:`REGULATOR_SPECS`), so
+an optimiser searches them with the reflex gains; lean_max is fixed data.  With
+k_vp = k_vi = 0 the offset is zero and the controller moves as the one it wraps.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from jaxgait.control.interface import Controller, Sensors
+from jaxgait.core.params import ParamSpec, ParamTable
+
+_S = "speed regulation by trunk lean (jaxgait.control.speed_lean)"
+
+#: The regulator's gains, appended to the wrapped controller's table.  Initial values leave
+#: the lean alone (k_vp = k_vi = 0).
+REGULATOR_SPECS: tuple[ParamSpec, ...] = (
+    ParamSpec("v_reg", 2.5, 0.5, 5.0, "target forward speed; " + _S, "m/s"),
+    ParamSpec("k_vp", 0.0, 0.0, 0.1, "lean per m/s of speed error; " + _S, "rad s/m"),
+    ParamSpec("k_vi", 0.0, 0.0, 0.05, "lean per m of integrated speed error; " + _S, "rad/m"),
+    ParamSpec("tau_vr", 1.0, 0.2, 3.0, "speed filter time constant; " + _S, "s"),
+    ParamSpec("i_max", 2.0, 0.1, 10.0, "anti-windup bound of the integral; " + _S, "m"),
+)
+REGULATOR_NAMES: tuple[str, ...] = tuple(s.name for s in REGULATOR_SPECS)
+
+
+@dataclass(frozen=True, eq=False)
+class SpeedLeanSettings:
+    """Static data of the wrapper: the wrapped controller and the offset's bound lean_max
+    [rad]."""
+
+    base: Controller
+    lean_max: float = 0.1
+
+
+@struct.dataclass
+class SpeedLeanState:
+    """The wrapped controller's state, the filtered speed v [m/s] and the integral I [m]."""
+
+    base: Any
+    v: jax.Array
+    integral: jax.Array
+
+
+def lean_command(p: dict, v, integral, lean_max: float):
+    """clip(k_vp (v_reg - v) + k_vi I, -lean_max, lean_max) [rad] (module docstring)."""
+    u = p["k_vp"] * (p["v_reg"] - v) + p["k_vi"] * integral
+    return jnp.clip(u, -lean_max, lean_max)
+
+
+def regulator_update(p: dict, state_v, state_i, v_com, dt):
+    """One step of the speed filter and of the integral clamped to [-i_max, i_max]: (v, I)."""
+    v = state_v + dt / p["tau_vr"] * (v_com - state_v)
+    integral = jnp.clip(state_i + dt * (p["v_reg"] - v), -p["i_max"], p["i_max"])
+    return v, integral
+
+
+def _init(ctrl: Controller, sens: Sensors, dt) -> SpeedLeanState:
+    s = ctrl.settings
+    v0 = sens.com_vel[0]
+    return SpeedLeanState(base=s.base.init(s.base, sens, dt), v=v0, integral=jnp.zeros_like(v0))
+
+
+def _step(ctrl: Controller, p: dict, sens: Sensors, state: SpeedLeanState, command: dict, dt):
+    s = ctrl.settings
+    v, integral = regulator_update(p, state.v, state.integral, sens.com_vel[0], dt)
+    u = lean_command(p, v, integral, s.lean_max)
+    command = {**command, "lean_offset": command["lean_offset"] + u}
+    stim, base_state = s.base.step(s.base, p, sens, state.base, command, dt)
+    return stim, SpeedLeanState(base=base_state, v=v, integral=integral)
+
+
+def speed_regulated(base: Controller, name: str, description: str | None = None) -> Controller:
+    """``base`` with the lean speed regulator (module docstring), named ``name``: its table is
+    ``base``'s followed by :data:`REGULATOR_SPECS`, so a ``base`` vector followed by the five
+    gains is a vector of the new model.
+
+    Raises:
+      ValueError: ``base`` has no ``lean_offset`` command, or already has a regulator entry.
+    """
+    if "lean_offset" not in base.command_names:
+        raise ValueError(f"controller {base.name!r} has no lean_offset command to regulate")
+    clash = sorted(set(REGULATOR_NAMES) & set(base.table.names))
+    if clash:
+        raise ValueError(f"controller {base.name!r} already has parameters {clash}")
+    return dataclasses.replace(
+        base,
+        name=name,
+        table=ParamTable(name, base.table.specs + REGULATOR_SPECS),
+        init=_init,
+        step=_step,
+        settings=SpeedLeanSettings(base=base),
+        initial_offsets=None
+        if base.initial_offsets is None
+        else (lambda ctrl, p: base.initial_offsets(base, p)),
+        description=description or base.description + ", speed regulated by trunk lean",
+    )
