@@ -143,6 +143,15 @@ register(
         )
     )
 )
+register(
+    planar_spec(
+        speed_regulated(
+            WANG_RUN_CONTROLLER,
+            "wang8_run_sr",
+            "wang8_run with its speed regulated through the stance trunk targets",
+        )
+    )
+)
 
 
 def _gh2010_build(timestep=None):

@@ -24,7 +24,7 @@ SR = "fblplus_bal_run_sr"
 
 
 def _p(**kw):
-    p = {"v_reg": 2.5, "k_vp": 0.02, "k_vi": 0.01, "tau_vr": 0.5, "i_max": 2.0}
+    p = {"v_reg": 2.5, "k_vp": 0.02, "k_vi": 0.01, "tau_vr": 0.5, "i_max_vr": 2.0}
     p.update(kw)
     return {k: jnp.float32(v) for k, v in p.items()}
 
@@ -60,7 +60,7 @@ def test_update_and_lean_by_hand():
     i_max=st.floats(0.1, 10),
 )
 def test_integral_and_lean_stay_in_their_bounds(v, i0, v_com, k_vp, k_vi, i_max):
-    p = _p(k_vp=k_vp, k_vi=k_vi, i_max=i_max)
+    p = _p(k_vp=k_vp, k_vi=k_vi, i_max_vr=i_max)
     v1, integral = regulator_update(p, jnp.float32(v), jnp.float32(i0), jnp.float32(v_com), 5e-4)
     assert abs(float(integral)) <= i_max * (1 + 1e-6)
     assert min(v, v_com) - 1e-4 <= float(v1) <= max(v, v_com) + 1e-4  # a filter, no overshoot

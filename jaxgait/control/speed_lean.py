@@ -7,13 +7,13 @@ reference theta_ref sets it (a reference 0.005 rad further forward accelerates s
 runner, 0.005 rad further back decelerates it), as a runner leans into a faster pace.
 :func:`speed_regulated` closes that loop with a PI law on the lean command every step:
 
-    v' = (v_com - v) / tau_vr                          (the speed filtered over a stride) [m/s]
-    e = v_reg - v,   I' = e, I clamped to [-i_max, i_max]                                   [m]
-    lean_offset <- lean_offset + clip(k_vp e + k_vi I, -lean_max, lean_max)               [rad]
+    v' = (v_com - v) / tau_vr             (the speed filtered over about a stride)   [m/s]
+    e = v_reg - v,  I' = e,  I clamped to [-i_max_vr, i_max_vr]                        [m]
+    lean_offset <- lean_offset + clip(k_vp e + k_vi I, -lean_max, lean_max)          [rad]
 
 (positive offsets lean forwards; ``lean_offset`` is the reflex laws' command added to
 theta_ref, :func:`jaxgait.control.fbl.with_commands`).  The five gains v_reg, k_vp, k_vi,
-tau_vr and i_max are entries of the wrapped controller's table (:data:`REGULATOR_SPECS`), so
+tau_vr and i_max_vr are entries of the wrapped controller's table (:data:`REGULATOR_SPECS`), so
 an optimiser searches them with the reflex gains; lean_max is fixed data.  With
 k_vp = k_vi = 0 the offset is zero and the controller moves as the one it wraps.
 """
@@ -40,7 +40,7 @@ REGULATOR_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("k_vp", 0.0, 0.0, 0.1, "lean per m/s of speed error; " + _S, "rad s/m"),
     ParamSpec("k_vi", 0.0, 0.0, 0.05, "lean per m of integrated speed error; " + _S, "rad/m"),
     ParamSpec("tau_vr", 1.0, 0.2, 3.0, "speed filter time constant; " + _S, "s"),
-    ParamSpec("i_max", 2.0, 0.1, 10.0, "anti-windup bound of the integral; " + _S, "m"),
+    ParamSpec("i_max_vr", 2.0, 0.1, 10.0, "anti-windup bound of the integral; " + _S, "m"),
 )
 REGULATOR_NAMES: tuple[str, ...] = tuple(s.name for s in REGULATOR_SPECS)
 
@@ -70,9 +70,9 @@ def lean_command(p: dict, v, integral, lean_max: float):
 
 
 def regulator_update(p: dict, state_v, state_i, v_com, dt):
-    """One step of the speed filter and of the integral clamped to [-i_max, i_max]: (v, I)."""
+    """One step of the speed filter and of the integral clamped to [-i_max_vr, i_max_vr]: (v, I)."""
     v = state_v + dt / p["tau_vr"] * (v_com - state_v)
-    integral = jnp.clip(state_i + dt * (p["v_reg"] - v), -p["i_max"], p["i_max"])
+    integral = jnp.clip(state_i + dt * (p["v_reg"] - v), -p["i_max_vr"], p["i_max_vr"])
     return v, integral
 
 
