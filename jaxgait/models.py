@@ -20,6 +20,7 @@ with a controller::
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -29,7 +30,11 @@ from jaxgait.control.commands import Command
 from jaxgait.control.fbl import FBL_CONTROLLER
 from jaxgait.control.fblankle import FBL_ANKLE_CONTROLLER
 from jaxgait.control.fblplus import FBLPLUS_CONTROLLER
-from jaxgait.control.fblplus_bal import FBLPLUS_BAL_CONTROLLER, FBLPLUS_BAL_RUN_CONTROLLER
+from jaxgait.control.fblplus_bal import (
+    FBLPLUS_BAL_CONTROLLER,
+    FBLPLUS_BAL_RUN_CONTROLLER,
+    FBLPLUS_BAL_RUN_WIDE,
+)
 from jaxgait.control.gait import GaitConfig
 from jaxgait.control.gh2010 import GH2010_CONTROLLER
 from jaxgait.control.interface import Controller
@@ -137,9 +142,9 @@ register(planar_spec(FBLPLUS_BAL_RUN_CONTROLLER))
 register(
     planar_spec(
         speed_regulated(
-            FBLPLUS_BAL_RUN_CONTROLLER,
+            dataclasses.replace(FBLPLUS_BAL_RUN_CONTROLLER, table=FBLPLUS_BAL_RUN_WIDE),
             "fblplus_bal_run_sr",
-            "fblplus_bal_run with its speed regulated through the trunk-lean reference",
+            "fblplus_bal_run, a wider swing drive, its speed regulated by the trunk lean",
         )
     )
 )

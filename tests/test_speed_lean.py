@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from jaxgait import models, sim
-from jaxgait.control.fblplus_bal import FBLPLUS_BAL_RUN, FBLPLUS_BAL_RUN_CONTROLLER
+from jaxgait.control.fblplus_bal import FBLPLUS_BAL_RUN, FBLPLUS_BAL_RUN_CONTROLLER, SR_RANGES
 from jaxgait.control.speed_lean import (
     REGULATOR_NAMES,
     lean_command,
@@ -30,9 +30,15 @@ def _p(**kw):
 
 
 def test_table_is_the_wrapped_one_then_the_regulator():
+    """fblplus_bal_run's names (SR_RANGES wider), then the regulator's five gains."""
     table = models.get_spec(SR).table
     assert table.names == FBLPLUS_BAL_RUN.names + REGULATOR_NAMES
-    assert table.specs[: FBLPLUS_BAL_RUN.size] == FBLPLUS_BAL_RUN.specs
+    for old, new in zip(FBLPLUS_BAL_RUN.specs, table.specs, strict=False):
+        if old.name in SR_RANGES:
+            assert (new.lower, new.upper) == SR_RANGES[old.name]
+            assert new.lower <= old.lower and new.upper >= old.upper
+        else:
+            assert new == old
     init = table.unpack(jnp.asarray(table.init))
     assert float(init["k_vp"]) == 0.0 and float(init["k_vi"]) == 0.0  # neutral by default
 

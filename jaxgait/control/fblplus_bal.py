@@ -131,3 +131,17 @@ FBLPLUS_BAL_RUN_CONTROLLER = dataclasses.replace(
     table=FBLPLUS_BAL_RUN,
     description="fblplus_bal with the running searches' wider ranges (plantarflexor gains, lean)",
 )
+
+#: Ranges of the speed-regulated runner (model ``fblplus_bal_run_sr``) widened again where
+#: the regulated runner sat at a bound (``experiments/running/speed_lean``: S0_HFL 0.098 of
+#: 0.1, S0_VAS 0.19 of 0.2, G_TA 2.9 of 3): a faster swing needs more hip-flexor drive.
+SR_RANGES: dict[str, tuple[float, float]] = {
+    "S0_HFL": (0.01, 0.3),
+    "S0_VAS": (0.01, 0.4),
+    "G_TA": (0.5, 5.0),
+}
+
+#: :data:`FBLPLUS_BAL_RUN` with :data:`SR_RANGES` (the base of ``fblplus_bal_run_sr``).
+FBLPLUS_BAL_RUN_WIDE = widened(
+    FBLPLUS_BAL_RUN, "fblplus_bal_run_wide", SR_RANGES, "; range widened for the regulated runner"
+)
