@@ -56,6 +56,23 @@ def test_fblplus_fastwalk_walks_20s_fast_with_double_stance_and_no_flight():
     assert m["double_stance_fraction"] > 0.05 and m["flight_fraction"] == 0.0
 
 
+@pytest.mark.slow
+def test_fblplus_run_2p0_runs_20s_with_flight_and_regulated_speed():
+    """The regulated FBL+ runner runs 20 s from its v0 (2.5 m/s) at 2.0 +- 0.1 m/s with flight
+    phases and no double stance; with its speed regulator off (k_vp = k_vi = 0) the same gains
+    slow down (experiments/running/README.md, "A speed regulator": the unregulated runner
+    slows to a fall within 16 s)."""
+    model, vec, doc = load_preset("fblplus_run_2p0")
+    assert model == "fblplus_bal_run_sr" and doc["v0"] == 2.5
+    m = _walk(vec, 20.0, model=model, v0=doc["v0"])
+    assert not m["fell"] and abs(m["mean_speed_mps"] - 2.0) < 0.1
+    assert m["flight_fraction"] > 0.15 and m["double_stance_fraction"] < 0.01
+    table = models.get_spec(model).table
+    off = table.pack({"k_vp": 0.0, "k_vi": 0.0}, base=vec)
+    m_off = _walk(off, 20.0, model=model, v0=doc["v0"])
+    assert m_off["fell"] or m_off["mean_speed_mps"] < m["mean_speed_mps"] - 0.2
+
+
 def test_fbl_humanlike_walks_20s_without_the_forefoot_slap():
     """The human-like preset walks 20 s at 1.2-1.4 m/s, its stance GRF peaks under 2.5 BW
     (fbl_walk's forefoot slaps to 3.7-4.9 BW) and its vertical GRF correlates with Winter's."""

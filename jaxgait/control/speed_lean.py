@@ -47,11 +47,14 @@ REGULATOR_NAMES: tuple[str, ...] = tuple(s.name for s in REGULATOR_SPECS)
 
 @dataclass(frozen=True, eq=False)
 class SpeedLeanSettings:
-    """Static data of the wrapper: the wrapped controller and the offset's bound lean_max
-    [rad]."""
+    """Static data of the wrapper: the wrapped controller, the command the regulator offsets
+    (``lean_offset`` by default), the suffix of its parameter names and the offset's bound
+    lean_max [rad]."""
 
     base: Controller
     lean_max: float = 0.1
+    command: str = "lean_offset"
+    suffix: str = ""
 
 
 @struct.dataclass
@@ -84,35 +87,47 @@ def _init(ctrl: Controller, sens: Sensors, dt) -> SpeedLeanState:
 
 def _step(ctrl: Controller, p: dict, sens: Sensors, state: SpeedLeanState, command: dict, dt):
     s = ctrl.settings
-    v, integral = regulator_update(p, state.v, state.integral, sens.com_vel[0], dt)
-    u = lean_command(p, v, integral, s.lean_max)
-    command = {**command, "lean_offset": command["lean_offset"] + u}
+    g = {n: p[n + s.suffix] for n in REGULATOR_NAMES}
+    v, integral = regulator_update(g, state.v, state.integral, sens.com_vel[0], dt)
+    u = lean_command(g, v, integral, s.lean_max)
+    command = {**command, s.command: command[s.command] + u}
     stim, base_state = s.base.step(s.base, p, sens, state.base, command, dt)
     return stim, SpeedLeanState(base=base_state, v=v, integral=integral)
 
 
-def speed_regulated(base: Controller, name: str, description: str | None = None) -> Controller:
-    """``base`` with the lean speed regulator (module docstring), named ``name``: its table is
-    ``base``'s followed by :data:`REGULATOR_SPECS`, so a ``base`` vector followed by the five
-    gains is a vector of the new model.
+def speed_regulated(
+    base: Controller,
+    name: str,
+    description: str | None = None,
+    command: str = "lean_offset",
+    suffix: str = "",
+) -> Controller:
+    """``base`` with the speed regulator (module docstring), named ``name``: its table is
+    ``base``'s followed by :data:`REGULATOR_SPECS` (each name with ``suffix`` appended), so a
+    ``base`` vector followed by the five gains is a vector of the new model.  ``command``
+    names the command the regulator offsets: ``lean_offset`` (the trunk lean) by default;
+    another, such as FBL+'s ``hip_target_offset`` (the swing-end hip target, where a
+    positive offset places the foot less far forwards), is offset the same way, forwards when
+    slower than v_reg.
 
     Raises:
-      ValueError: ``base`` has no ``lean_offset`` command, or already has a regulator entry.
+      ValueError: ``base`` has no such command, or already has a regulator entry.
     """
-    if "lean_offset" not in base.command_names:
-        raise ValueError(f"controller {base.name!r} has no lean_offset command to regulate")
-    clash = sorted(set(REGULATOR_NAMES) & set(base.table.names))
+    if command not in base.command_names:
+        raise ValueError(f"controller {base.name!r} has no {command} command to regulate")
+    specs = tuple(dataclasses.replace(sp, name=sp.name + suffix) for sp in REGULATOR_SPECS)
+    clash = sorted({sp.name for sp in specs} & set(base.table.names))
     if clash:
         raise ValueError(f"controller {base.name!r} already has parameters {clash}")
     return dataclasses.replace(
         base,
         name=name,
-        table=ParamTable(name, base.table.specs + REGULATOR_SPECS),
+        table=ParamTable(name, base.table.specs + specs),
         init=_init,
         step=_step,
-        settings=SpeedLeanSettings(base=base),
+        settings=SpeedLeanSettings(base=base, command=command, suffix=suffix),
         initial_offsets=None
         if base.initial_offsets is None
         else (lambda ctrl, p: base.initial_offsets(base, p)),
-        description=description or base.description + ", speed regulated by trunk lean",
+        description=description or base.description + f", speed regulated through {command}",
     )

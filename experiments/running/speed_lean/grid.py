@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxgait import models, sim
-from jaxgait.control.speed_lean import REGULATOR_NAMES
+from jaxgait.control.speed_lean import REGULATOR_NAMES, speed_regulated
 from jaxgait.presets import load_preset
 from jaxgait.world import envs
 
@@ -40,16 +40,29 @@ def main(argv=None):
     ap.add_argument("--tau", type=floats, default=[1.0])
     ap.add_argument("--i-max", type=floats, default=[2.0])
     ap.add_argument("--window", type=float, default=5.0)
+    ap.add_argument("--wrap", default=None, help="wrap this model with one more regulator")
+    ap.add_argument("--command", default="hip_target_offset", help="the --wrap regulator's")
+    ap.add_argument("--suffix", default="_h", help="of the --wrap regulator's names")
+    ap.add_argument("--base-set", action="append", default=[], help="NAME=VALUE (repeatable)")
     ap.add_argument("--out", default=None)
     a = ap.parse_args(argv)
 
     _, _, doc = load_preset(a.preset)
+    names = REGULATOR_NAMES
+    if a.wrap:
+        inner = models.get_model(a.wrap).controller
+        ctrl = speed_regulated(inner, a.wrap + a.suffix, command=a.command, suffix=a.suffix)
+        models.register(models.planar_spec(ctrl), replace=True)
+        a.model, names = ctrl.name, tuple(n + a.suffix for n in REGULATOR_NAMES)
     mdl = models.get_model(a.model)
     base = dict(doc["params"])
+    for kv in a.base_set:
+        k, v = kv.split("=")
+        base[k] = float(v)
     combos = list(itertools.product(a.v_reg, a.k_vp, a.k_vi, a.tau, a.i_max))
     vecs = []
     for c in combos:
-        p = {**base, **dict(zip(REGULATOR_NAMES, c, strict=True))}
+        p = {**base, **dict(zip(names, c, strict=True))}
         vecs.append(mdl.table.pack(p))
     params = jnp.asarray(np.asarray(vecs, np.float32))
     v0 = a.v0 if a.v0 is not None else doc.get("v0", 1.3)
@@ -62,7 +75,7 @@ def main(argv=None):
     for i, c in enumerate(combos):
         dur = float(summary.duration[i])
         r = dict(
-            zip(REGULATOR_NAMES, c, strict=True),
+            zip(names, c, strict=True),
             duration_s=dur,
             distance_m=float(summary.distance[i]),
             fell=bool(summary.fell[i]),

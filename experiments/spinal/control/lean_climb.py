@@ -7,7 +7,7 @@ propulsion), then climbs the increasing slope (environment 5, 0 -> 30 % over 160
 setting of the regulator's gains, as ``spinal climb`` does (``walk_tests``' slope test).
 Usage::
 
-    ./jg python experiments/spinal/lean_climb.py 3fbl_auto --v-reg 1.3 --k-vp 0,0.05 \
+    ./jg python experiments/spinal/control/lean_climb.py 3fbl_auto --v-reg 1.3 --k-vp 0,0.05 \
         --k-vi 0,0.02 --seeds 1 --duration 300 --out FILE.json
 """
 
