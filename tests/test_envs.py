@@ -249,3 +249,24 @@ def test_fading_weight_support_falls_linearly_to_none():
     assert int(jnp.count_nonzero(p.magnitude)) == E.FADE_STEPS
     with pytest.raises(ValueError, match="fade_s"):
         E.get_env_config("weight_support", fade_s=-1.0)
+
+
+def test_weight_support_pulls_along_its_angle():
+    """``angle`` 0: a tow of 0.05 body weights straight forwards (39.24 N, no vertical part);
+    pi/3: the same force split 19.62 N forwards, 33.98 N up; fading, the forward part fades.
+    An angle outside [-pi, pi] is refused with its name."""
+    w = 0.05 * 80.0 * 9.81
+    env = E.make_env(
+        E.get_env_config("weight_support", fraction=0.05, angle=0.0), jax.random.key(0)
+    )
+    fx, fz, _ = push_force(env.pushes, 3.0)
+    assert float(fx) == pytest.approx(w, rel=1e-6) and float(fz) == pytest.approx(0.0, abs=1e-4)
+    cfg = E.get_env_config("weight_support", fraction=0.05, angle=math.pi / 3)
+    fx, fz, _ = push_force(E.make_env(cfg, jax.random.key(0)).pushes, 3.0)
+    assert float(fx) == pytest.approx(w / 2, rel=1e-5)
+    assert float(fz) == pytest.approx(w * math.sqrt(3) / 2, rel=1e-5)
+    cfg = E.get_env_config("weight_support", fraction=0.05, angle=0.0, fade_s=8.0)
+    fx, fz, _ = push_force(E.make_env(cfg, jax.random.key(0)).pushes, 0.1)
+    assert float(fx) == pytest.approx(w * 31 / 32, rel=1e-5) and abs(float(fz)) < 1e-4
+    with pytest.raises(ValueError, match="angle"):
+        E.get_env_config("weight_support", angle=4.0)

@@ -299,17 +299,23 @@ class WeightSupportEnv(EnvConfig):
     body is on its own after ``fade_s``: a search on it rewards gaits that start under
     support and keep going without.
 
+    With ``angle`` other than pi/2 the harness pulls along that direction (the push
+    convention: 0 pulls straight forwards): a tow of ``fraction * mass * g`` [N], a training
+    aid for gaits faster than the body runs alone (``experiments/running``).
+
     Attributes:
-      fraction: share of the body weight carried, in [0, 1).
+      fraction: share of the body weight carried (the force in body weights), in [0, 1).
       mass: body mass [kg] the share is taken of (the planar body's 80 kg).
       height: point of application [m from the hip]; 0.3 m is near the trunk's centre of mass.
       fade_s: time [s] over which the support fades to none; 0 (default): constant support.
+      angle: direction of the pull [rad], pi/2 (default) straight up, 0 straight forwards.
     """
 
     fraction: float = 0.3
     mass: float = 80.0
     height: float = 0.3
     fade_s: float = 0.0
+    angle: float = math.pi / 2
 
     def __post_init__(self):
         super().__post_init__()
@@ -317,6 +323,8 @@ class WeightSupportEnv(EnvConfig):
         _check(self.mass > 0, "mass", self.mass, "> 0 [kg]")
         ok = isinstance(self.fade_s, (int, float)) and 0.0 <= self.fade_s < math.inf
         _check(ok, "fade_s", self.fade_s, ">= 0 and finite [s] (0: constant support)")
+        ok = isinstance(self.angle, (int, float)) and -math.pi <= self.angle <= math.pi
+        _check(ok, "angle", self.angle, "in [-pi, pi] [rad] (pi/2: straight up)")
 
     @property
     def force(self) -> float:
@@ -334,14 +342,14 @@ class WeightSupportEnv(EnvConfig):
                 t0=p.t0.at[:n].set(k * step),
                 duration=p.duration.at[:n].set(step),
                 magnitude=p.magnitude.at[:n].set(self.force * (1.0 - (k + 0.5) / n)),
-                angle=p.angle.at[:n].set(math.pi / 2),
+                angle=p.angle.at[:n].set(self.angle),
                 height=p.height.at[:n].set(self.height),
             )
         return p.replace(
             t0=p.t0.at[0].set(0.0),
             duration=p.duration.at[0].set(SUPPORT_DURATION_S),
             magnitude=p.magnitude.at[0].set(self.force),
-            angle=p.angle.at[0].set(math.pi / 2),
+            angle=p.angle.at[0].set(self.angle),
             height=p.height.at[0].set(self.height),
         )
 
