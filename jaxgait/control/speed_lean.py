@@ -16,6 +16,10 @@ theta_ref, :func:`jaxgait.control.fbl.with_commands`).  The five gains v_reg, k_
 tau_vr and i_max_vr are entries of the wrapped controller's table (:data:`REGULATOR_SPECS`), so
 an optimiser searches them with the reflex gains; lean_max is fixed data.  With
 k_vp = k_vi = 0 the offset is zero and the controller moves as the one it wraps.
+
+The same law can offset another command of the wrapped controller (``command=``, e.g. FBL+'s
+swing-end hip target ``hip_target_offset``), with its gains' names suffixed (``suffix=``) so
+that two regulators can wrap one controller.
 """
 
 from __future__ import annotations

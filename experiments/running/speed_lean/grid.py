@@ -44,6 +44,9 @@ def main(argv=None):
     ap.add_argument("--command", default="hip_target_offset", help="the --wrap regulator's")
     ap.add_argument("--suffix", default="_h", help="of the --wrap regulator's names")
     ap.add_argument("--base-set", action="append", default=[], help="NAME=VALUE (repeatable)")
+    ap.add_argument(
+        "--unchecked", action="store_true", help="allow gains outside the table's ranges"
+    )
     ap.add_argument("--out", default=None)
     a = ap.parse_args(argv)
 
@@ -63,7 +66,10 @@ def main(argv=None):
     vecs = []
     for c in combos:
         p = {**base, **dict(zip(names, c, strict=True))}
-        vecs.append(mdl.table.pack(p))
+        vec = mdl.table.pack(p)
+        if not a.unchecked:
+            mdl.table.check(vec, f"setting {dict(zip(names, c, strict=True))}")
+        vecs.append(vec)
     params = jnp.asarray(np.asarray(vecs, np.float32))
     v0 = a.v0 if a.v0 is not None else doc.get("v0", 1.3)
     cfg = sim.SimConfig(duration=a.duration, v0=float(v0), pose=doc.get("pose", sim.SimConfig.pose))
