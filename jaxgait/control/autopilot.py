@@ -74,6 +74,7 @@ from flax import struct
 
 from jaxgait.control.commands import Command
 from jaxgait.control.interface import Controller, Sensors
+from jaxgait.control.speed_lean import filter_and_integrate
 from jaxgait.core.params import ParamSpec, ParamTable
 
 _L = "speed-law gain (automatic control)"
@@ -262,10 +263,10 @@ def auto_step(ctrl: Controller, p: dict, sens: Sensors, s: AutoState, command: d
     st = ctrl.settings
     inner = st.inner
     a = 1.0 - jnp.exp(-dt / p["tau_v"])
-    v = s.v + a * (sens.com_vel[0] - s.v)
     v_target = target_speed(p, command["v_target"], s.target, dt, st.target_rate)
-    e = v_target - v
-    integral = jnp.clip(s.integral + dt * e, -p["i_max"], p["i_max"])
+    v, integral = filter_and_integrate(
+        s.v, s.integral, sens.com_vel[0], v_target, a, dt, p["i_max"]
+    )
     grade = grade_at_touchdown(sens.feet, sens.touchdown, s.grade, p["k_g"])
     sched = {c.name: command[c.name] for c in inner.commands}
     cmd = speed_commands(p, v_target, v, integral, sched, inner.commands, grade)

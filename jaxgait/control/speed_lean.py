@@ -76,11 +76,19 @@ def lean_command(p: dict, v, integral, lean_max: float):
     return jnp.clip(u, -lean_max, lean_max)
 
 
+def filter_and_integrate(v, integral, v_com, target, a, dt, i_max):
+    """One step of a speed filter, v <- v + a (v_com - v) (``a`` the step's share of the
+    filter, e.g. dt / tau), and of the error's integral, I <- clip(I + dt (target - v),
+    -i_max, i_max) [m]: (v, I).  Shared with :mod:`jaxgait.control.autopilot`."""
+    v = v + a * (v_com - v)
+    return v, jnp.clip(integral + dt * (target - v), -i_max, i_max)
+
+
 def regulator_update(p: dict, state_v, state_i, v_com, dt):
-    """One step of the speed filter and of the integral clamped to [-i_max_vr, i_max_vr]: (v, I)."""
-    v = state_v + dt / p["tau_vr"] * (v_com - state_v)
-    integral = jnp.clip(state_i + dt * (p["v_reg"] - v), -p["i_max_vr"], p["i_max_vr"])
-    return v, integral
+    """One step of the speed filter (a = dt / tau_vr) and of the integral clamped to
+    [-i_max_vr, i_max_vr]: (v, I)."""
+    a = dt / p["tau_vr"]
+    return filter_and_integrate(state_v, state_i, v_com, p["v_reg"], a, dt, p["i_max_vr"])
 
 
 def _init(ctrl: Controller, sens: Sensors, dt) -> SpeedLeanState:
