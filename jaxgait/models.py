@@ -139,15 +139,24 @@ register(planar_spec(WANG_RUN_CONTROLLER))
 register(planar_spec(FBL_ANKLE_CONTROLLER))
 register(planar_spec(FBLPLUS_BAL_CONTROLLER))
 register(planar_spec(FBLPLUS_BAL_RUN_CONTROLLER))
-register(
-    planar_spec(
-        speed_regulated(
-            dataclasses.replace(FBLPLUS_BAL_RUN_CONTROLLER, table=FBLPLUS_BAL_RUN_WIDE),
-            "fblplus_bal_run_sr",
-            "fblplus_bal_run, a wider swing drive, its speed regulated by the trunk lean",
-        )
-    )
+#: fblplus_bal_run with a wider swing drive, its speed regulated by the trunk lean.
+FBLPLUS_RUN_SR = speed_regulated(
+    dataclasses.replace(FBLPLUS_BAL_RUN_CONTROLLER, table=FBLPLUS_BAL_RUN_WIDE),
+    "fblplus_bal_run_sr",
+    "fblplus_bal_run, a wider swing drive, its speed regulated by the trunk lean",
 )
+register(planar_spec(FBLPLUS_RUN_SR))
+#: fblplus_bal_run_sr with a second regulator on FBL+'s swing-end hip target (gains suffixed
+#: ``_h``; either sign: a negative gain lengthens the stride when the run is slow).
+FBLPLUS_RUN_SR2 = speed_regulated(
+    FBLPLUS_RUN_SR,
+    "fblplus_bal_run_sr2",
+    "fblplus_bal_run_sr with its speed regulated through the swing-end hip target as well",
+    command="hip_target_offset",
+    suffix="_h",
+    ranges={"k_vp": (-0.3, 0.1), "k_vi": (-0.1, 0.05)},
+)
+register(planar_spec(FBLPLUS_RUN_SR2))
 register(
     planar_spec(
         speed_regulated(

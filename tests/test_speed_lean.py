@@ -114,33 +114,45 @@ def test_refuses_a_controller_without_lean_or_with_the_names():
 
 
 def test_a_second_regulator_on_another_command_has_its_own_names():
-    """The regulator on FBL+'s swing-end hip target around the lean-regulated model: its
-    gains carry the suffix, the lean regulator's keep theirs; zero gains leave the rollout
-    bit for bit as the model it wraps, nonzero ones change it (on the regulated runner
-    fblplus_run_2p0, whose swing-end rule uses the hip target)."""
+    """``fblplus_bal_run_sr2``: the regulator on FBL+'s swing-end hip target around the
+    lean-regulated model: its gains carry the suffix and may be negative, the lean
+    regulator's keep theirs; zero gains leave the rollout bit for bit as the model it wraps,
+    nonzero ones of either sign change it (on the regulated runner fblplus_run_2p0, whose
+    swing-end rule uses the hip target)."""
     from jaxgait.presets import load_preset
 
     inner = models.get_model(SR).controller
-    both = speed_regulated(inner, "sr_h", command="hip_target_offset", suffix="_h")
+    both = models.get_model("fblplus_bal_run_sr2").controller
     assert both.table.names == inner.table.names + tuple(n + "_h" for n in REGULATOR_NAMES)
+    spec = {sp.name: sp for sp in both.table.specs}
+    assert (spec["k_vp_h"].lower, spec["k_vp_h"].upper) == (-0.3, 0.1)
+    assert (spec["k_vi_h"].lower, spec["k_vi_h"].upper) == (-0.1, 0.05)
+    assert (spec["k_vp"].lower, spec["k_vp"].upper) == (0.0, 0.1)  # the lean's: unchanged
     with pytest.raises(ValueError, match="no v_target command"):
         speed_regulated(inner, "x", command="v_target")
-    models.register(models.planar_spec(both), replace=True)
-    try:
-        _, base, doc = load_preset("fblplus_run_2p0")
-        base = np.asarray(base, np.float32)
-        cfg = sim.SimConfig(duration=1.0, log_dt=0.01, v0=doc["v0"])
-        env = make_env("flat", jax.random.PRNGKey(0))
-        a = sim.rollout(models.get_model(SR), cfg, jnp.asarray(base), env)[0]
-        runs = []
-        for k in (0.0, 0.1):
-            vec = both.table.pack(
-                {"k_vp_h": k, "v_reg_h": 5.0}, base=np.r_[base, both.table.init[-5:]]
-            )
-            runs.append(
-                sim.rollout(models.get_model("sr_h"), cfg, jnp.asarray(vec, jnp.float32), env)[0]
-            )
-        np.testing.assert_array_equal(np.asarray(runs[0].qpos), np.asarray(a.qpos))
-        assert not np.array_equal(np.asarray(runs[1].qpos), np.asarray(a.qpos))
-    finally:
-        models.unregister("sr_h")
+    _, base, doc = load_preset("fblplus_run_2p0")
+    base = np.asarray(base, np.float32)
+    cfg = sim.SimConfig(duration=1.0, log_dt=0.01, v0=doc["v0"])
+    env = make_env("flat", jax.random.PRNGKey(0))
+    a = sim.rollout(models.get_model(SR), cfg, jnp.asarray(base), env)[0]
+    runs = []
+    for k in (0.0, 0.1, -0.1):
+        vec = both.table.pack({"k_vp_h": k, "v_reg_h": 5.0}, base=np.r_[base, both.table.init[-5:]])
+        both.table.check(vec)
+        model = models.get_model("fblplus_bal_run_sr2")
+        runs.append(sim.rollout(model, cfg, jnp.asarray(vec, jnp.float32), env)[0])
+    np.testing.assert_array_equal(np.asarray(runs[0].qpos), np.asarray(a.qpos))
+    for r in runs[1:]:
+        assert not np.array_equal(np.asarray(r.qpos), np.asarray(a.qpos))
+    assert not np.array_equal(np.asarray(runs[1].qpos), np.asarray(runs[2].qpos))
+
+
+def test_ranges_replace_the_gains_bounds_and_are_checked():
+    ctrl = speed_regulated(FBLPLUS_BAL_RUN_CONTROLLER, "r", ranges={"k_vi": (-0.2, 0.2)})
+    spec = {sp.name: sp for sp in ctrl.table.specs}
+    assert (spec["k_vi"].lower, spec["k_vi"].upper) == (-0.2, 0.2)
+    assert (spec["k_vp"].lower, spec["k_vp"].upper) == (0.0, 0.1)
+    with pytest.raises(ValueError, match=r"ranges name no regulator gain: \['k_p'\]"):
+        speed_regulated(FBLPLUS_BAL_RUN_CONTROLLER, "r", ranges={"k_p": (0, 1)})
+    with pytest.raises(ValueError, match="range \\(0.1, 0.2\\) of k_vp excludes its initial 0.0"):
+        speed_regulated(FBLPLUS_BAL_RUN_CONTROLLER, "r", ranges={"k_vp": (0.1, 0.2)})

@@ -113,6 +113,7 @@ def speed_regulated(
     description: str | None = None,
     command: str = "lean_offset",
     suffix: str = "",
+    ranges: dict[str, tuple[float, float]] | None = None,
 ) -> Controller:
     """``base`` with the speed regulator (module docstring), named ``name``: its table is
     ``base``'s followed by :data:`REGULATOR_SPECS` (each name with ``suffix`` appended), so a
@@ -120,14 +121,27 @@ def speed_regulated(
     names the command the regulator offsets: ``lean_offset`` (the trunk lean) by default;
     another, such as FBL+'s ``hip_target_offset`` (the swing-end hip target, where a
     positive offset places the foot less far forwards), is offset the same way, forwards when
-    slower than v_reg.
+    slower than v_reg.  ``ranges`` replaces the (lower, upper) bounds of gains named as in
+    :data:`REGULATOR_NAMES` (unsuffixed), e.g. negative k_vp and k_vi for a regulator whose
+    useful sign is not known beforehand; each initial value must lie in its new range.
 
     Raises:
-      ValueError: ``base`` has no such command, or already has a regulator entry.
+      ValueError: ``base`` has no such command, or already has a regulator entry; ``ranges``
+        names an unknown gain or a range that excludes its initial value.
     """
     if command not in base.command_names:
         raise ValueError(f"controller {base.name!r} has no {command} command to regulate")
-    specs = tuple(dataclasses.replace(sp, name=sp.name + suffix) for sp in REGULATOR_SPECS)
+    ranges = dict(ranges or {})
+    unknown = sorted(set(ranges) - set(REGULATOR_NAMES))
+    if unknown:
+        raise ValueError(f"ranges name no regulator gain: {unknown} (gains: {REGULATOR_NAMES})")
+    specs = []
+    for sp in REGULATOR_SPECS:
+        lo, hi = ranges.get(sp.name, (sp.lower, sp.upper))
+        if not lo <= sp.init <= hi:
+            raise ValueError(f"range ({lo}, {hi}) of {sp.name} excludes its initial {sp.init}")
+        specs.append(dataclasses.replace(sp, name=sp.name + suffix, lower=lo, upper=hi))
+    specs = tuple(specs)
     clash = sorted({sp.name for sp in specs} & set(base.table.names))
     if clash:
         raise ValueError(f"controller {base.name!r} already has parameters {clash}")

@@ -43,6 +43,11 @@ def main(argv=None):
     ap.add_argument("--wrap", default=None, help="wrap this model with one more regulator")
     ap.add_argument("--command", default="hip_target_offset", help="the --wrap regulator's")
     ap.add_argument("--suffix", default="_h", help="of the --wrap regulator's names")
+    ap.add_argument(
+        "--vary-suffix",
+        default=None,
+        help="vary --model's regulator gains with this suffix (_h of fblplus_bal_run_sr2)",
+    )
     ap.add_argument("--base-set", action="append", default=[], help="NAME=VALUE (repeatable)")
     ap.add_argument(
         "--unchecked", action="store_true", help="allow gains outside the table's ranges"
@@ -57,6 +62,8 @@ def main(argv=None):
         ctrl = speed_regulated(inner, a.wrap + a.suffix, command=a.command, suffix=a.suffix)
         models.register(models.planar_spec(ctrl), replace=True)
         a.model, names = ctrl.name, tuple(n + a.suffix for n in REGULATOR_NAMES)
+    elif a.vary_suffix:
+        names = tuple(n + a.vary_suffix for n in REGULATOR_NAMES)
     mdl = models.get_model(a.model)
     base = dict(doc["params"])
     for kv in a.base_set:
