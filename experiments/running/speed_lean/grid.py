@@ -24,6 +24,18 @@ from jaxgait.presets import load_preset
 from jaxgait.world import envs
 
 
+def speed_windows(vx, duration: float, log_dt: float, window: float) -> list[float]:
+    """Mean forward speed [m/s] of one rollout's logged ``vx`` over successive windows of
+    ``window`` s up to ``duration`` (a last window less than half full is left out)."""
+    n = int(round(window / log_dt))
+    alive = int(duration / log_dt)
+    return [
+        round(float(vx[k : min(k + n, alive)].mean()), 3)
+        for k in range(0, alive, n)
+        if k + n // 2 < alive
+    ]
+
+
 def floats(s):
     return [float(x) for x in s.split(",")]
 
@@ -93,13 +105,7 @@ def main(argv=None):
             distance_m=float(summary.distance[i]),
             fell=bool(summary.fell[i]),
         )
-        n = int(round(a.window / cfg.log_dt))
-        alive = int(dur / cfg.log_dt)
-        r["speed_windows"] = [
-            round(float(vx[i, k : min(k + n, alive)].mean()), 3)
-            for k in range(0, alive, n)
-            if k + n // 2 < alive
-        ]
+        r["speed_windows"] = speed_windows(vx[i], dur, cfg.log_dt, a.window)
         rows.append(r)
         print(json.dumps(r))
     if a.out:

@@ -17,6 +17,7 @@ import json
 import jax
 import jax.numpy as jnp
 import numpy as np
+from grid import speed_windows  # this folder's grid.py (the script's folder is on sys.path)
 
 from jaxgait import models, sim
 from jaxgait.presets import load_preset
@@ -59,20 +60,14 @@ def main(argv=None):
     params = jnp.asarray(np.asarray(vecs, np.float32))
     trace, _, summary, _ = sim.make_rollout(mdl, cfg)(params, envb)
     vx = np.asarray(trace.com_vel[..., 0])
-    n = int(round(a.window / cfg.log_dt))
     rows = []
     for i, c in enumerate(combos):
         dur = float(summary.duration[i])
-        alive = int(dur / cfg.log_dt)
         r = {
             "scales": dict(zip(names, c, strict=True)),
             "duration_s": dur,
             "fell": bool(summary.fell[i]),
-            "speed_windows": [
-                round(float(vx[i, k : min(k + n, alive)].mean()), 3)
-                for k in range(0, alive, n)
-                if k + n // 2 < alive
-            ],
+            "speed_windows": speed_windows(vx[i], dur, cfg.log_dt, a.window),
         }
         rows.append(r)
         print(json.dumps(r))
