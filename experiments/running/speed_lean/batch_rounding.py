@@ -19,11 +19,6 @@ from jaxgait.presets import load_preset
 from jaxgait.world import envs
 
 
-def copies(tree, n: int):
-    """``n`` copies of every leaf of ``tree`` along a new leading axis."""
-    return jax.tree.map(lambda x: jnp.broadcast_to(x, (n,) + jnp.shape(x)), tree)
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("preset")
@@ -34,10 +29,11 @@ def main(argv=None):
     model = models.get_model(doc["model"])
     pose = doc.get("pose", sim.SimConfig.pose)
     cfg = sim.SimConfig(duration=a.duration, v0=doc["v0"], pose=pose)
-    env = envs.make_env(envs.get_env_config("flat"), jax.random.PRNGKey(0))
     run = sim.make_rollout(model, cfg)
     for b in (int(x) for x in a.batches.split(",")):
-        summary = run(copies(jnp.asarray(base, jnp.float32), b), copies(env, b))[2]
+        params = jnp.tile(jnp.asarray(base, jnp.float32), (b, 1))
+        env = envs.make_env_batch("flat", jnp.tile(jax.random.PRNGKey(0), (b, 1)))
+        summary = run(params, env)[2]
         durations = [round(float(d), 1) for d in np.asarray(summary.duration)]
         print(a.preset, "batch", b, "durations [s]", durations, flush=True)
 

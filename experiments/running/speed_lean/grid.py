@@ -92,8 +92,8 @@ def main(argv=None):
     params = jnp.asarray(np.asarray(vecs, np.float32))
     v0 = a.v0 if a.v0 is not None else doc.get("v0", 1.3)
     cfg = sim.SimConfig(duration=a.duration, v0=float(v0), pose=doc.get("pose", sim.SimConfig.pose))
-    env = envs.make_env(envs.get_env_config("flat"), jax.random.PRNGKey(0))
-    envb = jax.tree.map(lambda x: jnp.broadcast_to(x, (len(vecs),) + jnp.shape(x)), env)
+    keys = jnp.tile(jax.random.PRNGKey(0), (len(vecs), 1))  # the same flat ground per lane
+    envb = envs.make_env_batch("flat", keys)
     trace, events, summary, _ = sim.make_rollout(mdl, cfg)(params, envb)
     vx = np.asarray(trace.com_vel[..., 0])
     rows = []

@@ -55,8 +55,8 @@ def main(argv=None):
         table.check(vec, f"scales {dict(zip(names, c, strict=True))}")
         vecs.append(vec)
     cfg = sim.SimConfig(duration=a.duration, v0=doc["v0"], pose=doc.get("pose", sim.SimConfig.pose))
-    env = envs.make_env(envs.get_env_config("flat"), jax.random.PRNGKey(0))
-    envb = jax.tree.map(lambda x: jnp.broadcast_to(x, (len(vecs),) + jnp.shape(x)), env)
+    keys = jnp.tile(jax.random.PRNGKey(0), (len(vecs), 1))  # the same flat ground per lane
+    envb = envs.make_env_batch("flat", keys)
     params = jnp.asarray(np.asarray(vecs, np.float32))
     trace, _, summary, _ = sim.make_rollout(mdl, cfg)(params, envb)
     vx = np.asarray(trace.com_vel[..., 0])
