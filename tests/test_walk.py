@@ -73,6 +73,25 @@ def test_fblplus_run_2p0_runs_20s_with_flight_and_regulated_speed():
     assert m_off["fell"] or m_off["mean_speed_mps"] < m["mean_speed_mps"] - 0.2
 
 
+@pytest.mark.slow
+def test_fblplus_push_run_runs_in_any_batch_layout():
+    """The push-tolerant FBL+ runner runs 20 s with flight phases and no double stance both
+    alone and as every lane of a batch of 3 identical copies, the layout whose float32
+    rounding tips `fblplus_run_2p0` over at 6.7 s (experiments/running/README.md, "A runner
+    robust to rounding")."""
+    model_name, vec, doc = load_preset("fblplus_push_run_1p8")
+    assert model_name == "fblplus_bal_run_sr"
+    m = _walk(vec, 20.0, model=model_name, v0=doc["v0"])
+    assert not m["fell"] and 1.7 <= m["mean_speed_mps"] <= 1.95
+    assert m["flight_fraction"] > 0.15 and m["double_stance_fraction"] < 0.01
+    run = sim.make_rollout(models.get_model(model_name), sim.SimConfig(duration=20.0, v0=doc["v0"]))
+    params = jnp.tile(jnp.asarray(vec, jnp.float32), (3, 1))
+    env = envs.make_env_batch("flat", jnp.tile(jax.random.PRNGKey(0), (3, 1)))
+    summary = run(params, env)[2]
+    assert not bool(summary.fell.any())
+    assert [round(float(d), 1) for d in summary.duration] == [20.0, 20.0, 20.0]
+
+
 def test_fbl_humanlike_walks_20s_without_the_forefoot_slap():
     """The human-like preset walks 20 s at 1.2-1.4 m/s, its stance GRF peaks under 2.5 BW
     (fbl_walk's forefoot slaps to 3.7-4.9 BW) and its vertical GRF correlates with Winter's."""
