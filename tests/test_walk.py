@@ -90,7 +90,7 @@ def test_fblplus_run_2p0_runs_20s_with_flight_and_regulated_speed():
 def test_fblplus_push_run_runs_in_any_batch_layout():
     """The push-tolerant FBL+ runner runs 20 s with flight phases and no double stance both
     alone and as every lane of a batch of 3 identical copies, the layout whose float32
-    rounding tips `fblplus_run_2p0` over at 6.7 s (experiments/running/README.md, "A runner
+    rounding tips `fblplus_run_2p0` over at 6.7 s (experiments/running/README.md, "Runners
     robust to rounding")."""
     model_name, vec, doc = load_preset("fblplus_push_run_1p8")
     assert model_name == "fblplus_bal_run_sr"
