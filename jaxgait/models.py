@@ -41,7 +41,7 @@ from jaxgait.control.interface import Controller
 from jaxgait.control.speed_lean import speed_regulated
 from jaxgait.control.spinal import FBL_NET, FBLPLUS_NET, spinal_controller
 from jaxgait.control.wang import WANG_CONTROLLER, WANG_RUN_CONTROLLER
-from jaxgait.core.params import ParamTable
+from jaxgait.core.params import ParamTable, widened
 from jaxgait.sim.model import planar_model
 from jaxgait.taga.sim import COMMANDS as TAGA_COMMANDS
 from jaxgait.taga.sim import default_sim
@@ -146,6 +146,23 @@ FBLPLUS_RUN_SR = speed_regulated(
     "fblplus_bal_run, a wider swing drive, its speed regulated by the trunk lean",
 )
 register(planar_spec(FBLPLUS_RUN_SR))
+#: fblplus_bal_run_sr with swing end reachable before the swing foot passes the CoM:
+#: d_sw_end's range [-2.5, 0] (Table 2.6) widened to [-2.5, 1] foot lengths, where the
+#: regulated runners sat at the bound (``fblplus_run_2p0``: -0.039, ``fblplus_push_run_1p8``:
+#: -0.049); a positive threshold starts the swing-end PD rules (the knee's extension towards
+#: delta_knee_ref, the hip's towards its target) while the foot is still behind the CoM.
+FBLPLUS_RUN_SR_SE = dataclasses.replace(
+    FBLPLUS_RUN_SR,
+    name="fblplus_bal_run_sr_se",
+    table=widened(
+        FBLPLUS_RUN_SR.table,
+        "fblplus_bal_run_sr_se",
+        {"d_sw_end": (-2.5, 1.0)},
+        "; range widened: swing end may start behind the CoM (fblplus_bal_run_sr_se)",
+    ),
+    description="fblplus_bal_run_sr with swing end allowed to start before the foot passes the CoM",
+)
+register(planar_spec(FBLPLUS_RUN_SR_SE))
 #: fblplus_bal_run_sr with a second regulator on FBL+'s swing-end hip target (gains suffixed
 #: ``_h``; either sign: a negative gain lengthens the stride when the run is slow).
 FBLPLUS_RUN_SR2 = speed_regulated(

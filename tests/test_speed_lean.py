@@ -156,3 +156,32 @@ def test_ranges_replace_the_gains_bounds_and_are_checked():
         speed_regulated(FBLPLUS_BAL_RUN_CONTROLLER, "r", ranges={"k_p": (0, 1)})
     with pytest.raises(ValueError, match="range \\(0.1, 0.2\\) of k_vp excludes its initial 0.0"):
         speed_regulated(FBLPLUS_BAL_RUN_CONTROLLER, "r", ranges={"k_vp": (0.1, 0.2)})
+
+
+def test_swing_end_widened_model_is_the_regulated_runner_with_one_range():
+    """``fblplus_bal_run_sr_se``: ``fblplus_bal_run_sr``'s names, d_sw_end in [-2.5, 1]
+    instead of [-2.5, 0] (every other entry equal); a runner's vector moves bit for bit as in
+    the model it widens (1 s), and a positive threshold (swing end starting while the swing
+    foot is behind the CoM) changes the run."""
+    from jaxgait.presets import load_preset
+
+    sr = models.get_spec(SR).table
+    se = models.get_spec("fblplus_bal_run_sr_se").table
+    assert se.names == sr.names
+    for old, new in zip(sr.specs, se.specs, strict=True):
+        if old.name == "d_sw_end":
+            assert (old.lower, old.upper) == (-2.5, 0.0) and (new.lower, new.upper) == (-2.5, 1.0)
+        else:
+            assert new == old
+    _, base, doc = load_preset("fblplus_push_run_1p8")
+    base = np.asarray(base, np.float32)
+    cfg = sim.SimConfig(duration=1.0, log_dt=0.01, v0=doc["v0"])
+    env = make_env("flat", jax.random.PRNGKey(0))
+    a = sim.rollout(models.get_model(SR), cfg, jnp.asarray(base), env)[0]
+    b = sim.rollout(models.get_model("fblplus_bal_run_sr_se"), cfg, jnp.asarray(base), env)[0]
+    np.testing.assert_array_equal(np.asarray(b.qpos), np.asarray(a.qpos))
+    early = se.pack({"d_sw_end": 0.5}, base=base)
+    se.check(early, "d_sw_end 0.5")  # inside the widened range
+    early = jnp.asarray(early, jnp.float32)
+    c = sim.rollout(models.get_model("fblplus_bal_run_sr_se"), cfg, early, env)[0]
+    assert np.abs(np.asarray(c.qpos) - np.asarray(a.qpos)).max() > 1e-3
