@@ -1,8 +1,9 @@
 """How far a preset's gains can move: every combination of scaled parameters, one batch.
 
 Each ``--scale NAME=F1,F2,...`` multiplies the preset's NAME by each factor, each
-``--value NAME=V1,V2,...`` sets it to each value; every combination is rolled out on flat ground at once (``vmap``) from the preset's
-own v0 and pose, and the script prints, per setting, how long it ran and its speed over
+``--value NAME=V1,V2,...`` sets it to each value; every combination is rolled out on flat
+ground at once (``vmap``) from the preset's own v0 and pose, and the script prints, per
+setting, how long it ran and its speed over
 successive windows; ``--out`` writes the rows as JSON (experiments/running/README.md, "A
 speed regulator": how narrow the regulated runner's basin is).  Usage::
 
