@@ -46,15 +46,20 @@ def test_full_size_reproduction_presets_walk_20s_on_flat_ground(name):
     assert 1.2 <= m["mean_speed_mps"] <= 1.45 and m["n_steps"] >= 20
 
 
+def _exp3_polish(start: str, polished: str) -> tuple[dict, dict]:
+    """20 s measures of an exp3 gait and of its CMA-ES polish (an FBL preset of exp3)."""
+    _, before, _ = load_preset(start)
+    model, vec, doc = load_preset(polished)
+    assert model == "fbl" and doc["experiment"] == "exp3"
+    return _walk(before, 20.0), _walk(vec, 20.0)
+
+
 @pytest.mark.slow
 def test_exp3_walk_refined_walks_more_economically_than_exp3_walk():
     """The CMA-ES refinement of exp3's best in its energy stage walks 20 s near 1.3 m/s with
     C_angles still above 0.8 and less energy per metre than the gait it started from
     (experiments/full/README.md, "exp3 refined by CMA-ES": 331 against 377 J/m over 60 s)."""
-    _, start, _ = load_preset("exp3_walk")
-    model, vec, doc = load_preset("exp3_walk_refined")
-    assert model == "fbl" and doc["experiment"] == "exp3"
-    m0, m = _walk(start, 20.0), _walk(vec, 20.0)
+    m0, m = _exp3_polish("exp3_walk", "exp3_walk_refined")
     assert not m["fell"] and 1.25 <= m["mean_speed_mps"] <= 1.4 and m["c_angles"] > 0.8
     assert m["energy_J_per_m"] < 0.95 * m0["energy_J_per_m"]
 
@@ -64,10 +69,7 @@ def test_exp3_walk_economy_walks_on_less_energy_than_the_refined_gait():
     """The 80 m-horizon polish of exp3's best walks 20 s near 1.3 m/s on less energy per metre
     than ``exp3_walk_refined`` with C_angles at the energy stage's threshold (0.8, to 0.02)
     (experiments/full/README.md, "A third 80 m pass": 303 against 331 J/m over 60 s)."""
-    _, refined, _ = load_preset("exp3_walk_refined")
-    model, vec, doc = load_preset("exp3_walk_economy")
-    assert model == "fbl" and doc["experiment"] == "exp3"
-    m_ref, m = _walk(refined, 20.0), _walk(vec, 20.0)
+    m_ref, m = _exp3_polish("exp3_walk_refined", "exp3_walk_economy")
     assert not m["fell"] and 1.25 <= m["mean_speed_mps"] <= 1.4 and m["c_angles"] > 0.78
     assert m["energy_J_per_m"] < 0.95 * m_ref["energy_J_per_m"]
 
