@@ -42,6 +42,7 @@ from jaxgait.control.speed_lean import speed_regulated
 from jaxgait.control.spinal import FBL_NET, FBLPLUS_NET, spinal_controller
 from jaxgait.control.wang import WANG_CONTROLLER, WANG_RUN_CONTROLLER
 from jaxgait.core.params import ParamTable, widened
+from jaxgait.muscles.tables import GEYER7, MuscleTable, with_headroom
 from jaxgait.sim.model import planar_model
 from jaxgait.taga.sim import COMMANDS as TAGA_COMMANDS
 from jaxgait.taga.sim import default_sim
@@ -65,15 +66,22 @@ class ModelSpec:
             raise ValueError(f"model {self.name!r}: family {self.family!r} not in {FAMILIES}")
 
 
-def planar_spec(controller: Controller, description: str | None = None) -> ModelSpec:
+def planar_spec(
+    controller: Controller,
+    description: str | None = None,
+    *,
+    name: str | None = None,
+    muscles: MuscleTable | None = None,
+) -> ModelSpec:
     """The spec of ``controller`` on the planar Geyer body (:func:`jaxgait.sim.planar_model`,
-    with the muscle table of the controller's muscle count)."""
+    with the muscle table of the controller's muscle count unless ``muscles`` is given), under
+    the controller's name unless ``name`` is given."""
 
     def build(timestep=None):
-        return planar_model(controller, timestep)
+        return planar_model(controller, timestep, name=name, muscles=muscles)
 
     return ModelSpec(
-        name=controller.name,
+        name=name or controller.name,
         family="planar",
         description=description or controller.description,
         table=controller.table,
@@ -174,6 +182,33 @@ FBLPLUS_RUN_SR2 = speed_regulated(
     ranges={"k_vp": (-0.3, 0.1), "k_vi": (-0.1, 0.05)},
 )
 register(planar_spec(FBLPLUS_RUN_SR2))
+#: fblplus_bal_run_sr with 25 % headroom in the hip flexor: HFL's stimulation may reach 1.25
+#: instead of 1, so the leg pulls exactly as before until HFL saturates and up to 1.25 x its
+#: active maximum above (a capacity study, not the thesis's model;
+#: :func:`jaxgait.muscles.tables.with_headroom`).  The regulated FBL+ runners hold HFL's
+#: activation above 0.95 for 36 % of each swing at 1.8-2.0 m/s and 51-69 % in the faster
+#: settings that fall (experiments/running/capacity/saturation.json).
+HFL_HEADROOM = 1.25
+register(
+    planar_spec(
+        FBLPLUS_RUN_SR,
+        "fblplus_bal_run_sr with 25 % headroom in the hip flexor's stimulation (capacity study)",
+        name="fblplus_bal_run_sr_hfl125",
+        muscles=with_headroom(GEYER7, {"HFL": HFL_HEADROOM}, "HFL stimulation up to 1.25"),
+    )
+)
+#: The same study with every muscle's stimulation allowed up to 1.25 (the runners' stance
+#: muscles VAS, SOL, GLU, HAM, GAS are above 0.95 for 13-39 % of each stance).
+register(
+    planar_spec(
+        FBLPLUS_RUN_SR,
+        "fblplus_bal_run_sr with 25 % headroom in every muscle's stimulation (capacity study)",
+        name="fblplus_bal_run_sr_hr125",
+        muscles=with_headroom(
+            GEYER7, dict.fromkeys(GEYER7.names, HFL_HEADROOM), "every stimulation up to 1.25"
+        ),
+    )
+)
 register(
     planar_spec(
         speed_regulated(

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from jaxgait.muscles.elements import (
@@ -82,6 +83,7 @@ __all__ = [
     "mtu_length",
     "mtu_length_changes",
     "muscle_step",
+    "stim_upper",
     "v_from_fv",
 ]
 
@@ -288,6 +290,14 @@ def merge_muscle_axes(table: MuscleTable, *xs):
     return table.tiled(shape[-2]), tuple(x.reshape(merged) for x in xs)
 
 
+def stim_upper(table: MuscleTable, dtype):
+    """Upper bound of the stimulation, (M,) or the scalar 1 (every source table: the step's
+    program is then the one it always was)."""
+    if np.all(table.stim_max == 1.0):
+        return 1.0
+    return as_const(table.stim_max, dtype)
+
+
 def muscle_step(
     table: MuscleTable,
     state: MuscleState,
@@ -300,8 +310,9 @@ def muscle_step(
 ):
     """Advance the MTU state by dt [s] with ``substeps`` fixed sub-steps of h = dt / substeps.
 
-    stim (..., M) is clipped to [0.01, 1]; l_mtu (..., M) [m] is held over the step.  Per
-    sub-step, both updates starting from the state at the start of the sub-step:
+    stim (..., M) is clipped to [0.01, stim_max] (``table.stim_max``: 1 but in a capacity
+    study); l_mtu (..., M) [m] is held over the step.  Per sub-step, both updates starting
+    from the state at the start of the sub-step:
 
     * activation, dA/dt = (S - A) / tau (eq. 2.6, tau = 0.01 s), updated exactly for constant S:
       A <- S + (A - S) exp(-h / tau);
@@ -353,7 +364,7 @@ def muscle_step(
     l_mtu = jnp.asarray(l_mtu)
     fdt = compute_dtype(act0, l_ce0, l_mtu)
     act0, l_ce0, l_mtu = act0.astype(fdt), l_ce0.astype(fdt), l_mtu.astype(fdt)
-    stim = jnp.clip(jnp.asarray(stim, dtype=fdt), ACT_MIN, 1.0)
+    stim = jnp.clip(jnp.asarray(stim, dtype=fdt), ACT_MIN, stim_upper(table, fdt))
     shape = jnp.broadcast_shapes(act0.shape, l_ce0.shape, l_mtu.shape, stim.shape)
     act0, l_ce0, l_mtu, stim = (jnp.broadcast_to(x, shape) for x in (act0, l_ce0, l_mtu, stim))
     table, (act0, l_ce0, l_mtu, stim) = merge_muscle_axes(table, act0, l_ce0, l_mtu, stim)

@@ -69,6 +69,9 @@ class MuscleTable:
         muscle does not span the joint.
       arm: 0 no arm, 1 constant arm, 2 cosine arm.
       w, c, N, K, eps_ref, tau_act: shared constants (see module constants).
+      stim_max: (M,) upper bound of the stimulation (and so of the activation) [-]; 1 for
+        every muscle of a source's table (``None`` is read as ones).  Above 1 only in a
+        capacity study (:func:`with_headroom`).
     """
 
     names: tuple[str, ...]
@@ -90,10 +93,18 @@ class MuscleTable:
     eps_ref: float = EPS_REF_DEFAULT
     tau_act: float = TAU_ACT_DEFAULT
     source: str = field(default="", repr=False)
+    stim_max: np.ndarray | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "names", tuple(self.names))
         m = len(self.names)
+        if self.stim_max is None:
+            object.__setattr__(self, "stim_max", np.ones(m))
+        smax = np.array(self.stim_max, dtype=np.float64)
+        if smax.shape != (m,) or not np.all(np.isfinite(smax)) or np.any(smax < 1.0):
+            raise ValueError(f"MuscleTable.stim_max: {m} finite values >= 1 expected, got {smax}")
+        smax.setflags(write=False)
+        object.__setattr__(self, "stim_max", smax)
         for k in _PER_MUSCLE:
             a = np.array(getattr(self, k), dtype=np.float64)
             if a.shape != (m,):
@@ -119,7 +130,7 @@ class MuscleTable:
     def tiled(self, reps: int) -> MuscleTable:
         """This table repeated ``reps`` times: muscle i of copy k at index k M + i, the order
         of a (..., reps, M) array with its last two axes merged (e.g. two legs)."""
-        per = {k: np.tile(getattr(self, k), reps) for k in _PER_MUSCLE}
+        per = {k: np.tile(getattr(self, k), reps) for k in _PER_MUSCLE + ("stim_max",)}
         arms = {k: np.tile(getattr(self, k), (reps, 1)) for k in _PER_JOINT}
         return dataclasses.replace(self, names=self.names * reps, **per, **arms)
 
@@ -222,6 +233,29 @@ WANG8 = _table(
     {**_GEYER_JOINTS, **_RF_JOINTS},
     "GEYER7 + RF (Song & Geyer 2015 geometry, Uchida 2016 t_I)",
 )
+
+
+def with_headroom(table: MuscleTable, factors: dict[str, float], label: str) -> MuscleTable:
+    """``table`` whose named muscles may be stimulated up to ``factors`` (>= 1) instead of 1.
+
+    The contractile force is linear in the activation (eq. 2.15), so a muscle of this table
+    pulls exactly as before while its controller asks for a stimulation of at most 1, and
+    delivers what it asks for above that, up to ``factor`` times its active maximum; the
+    tendon, parallel and buffer elements (which scale with F_max) are unchanged.  A capacity
+    study, not a source's table: would the gait use the force if the muscle had it?  The
+    metabolic models count an activation above 1 as 1 (their rates are defined on [0, 1]).
+    ``label`` is appended to the table's source.
+    """
+    unknown = sorted(set(factors) - set(table.names))
+    if unknown:
+        raise ValueError(f"with_headroom({label!r}): no muscles {unknown} in {table.names}")
+    bad = {k: v for k, v in factors.items() if not (np.isfinite(v) and v >= 1.0)}
+    if bad:
+        raise ValueError(f"with_headroom({label!r}): factors must be finite and >= 1, got {bad}")
+    smax = np.array(table.stim_max, dtype=np.float64)
+    for name, f in factors.items():
+        smax[table.index(name)] = f
+    return dataclasses.replace(table, stim_max=smax, source=f"{table.source}; {label}")
 
 
 # ----------------------------------------------------------------------------------------------

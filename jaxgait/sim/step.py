@@ -199,7 +199,7 @@ def initial_state(
         def settle(_, al):  # the stimulation of the muscles resting at al = (act, l_ce)
             sens = start_sensors(*al)
             stim, _ = ctrl.step(ctrl, p, sens, ctrl.init(ctrl, sens, model.dt), cmd, model.dt)
-            a = jnp.clip(stim.astype(dtype), mus.ACT_MIN, 1.0)
+            a = jnp.clip(stim.astype(dtype), mus.ACT_MIN, mus.stim_upper(table, dtype))
             return a, mus.init_lce(table, l_mtu, a)
 
         act, l_ce = jax.lax.fori_loop(0, START_REFLEX_ITERS, settle, (act, l_ce))
