@@ -47,7 +47,7 @@ def test_full_size_reproduction_presets_walk_20s_on_flat_ground(name):
 
 
 def _exp3_polish(start: str, polished: str) -> tuple[dict, dict]:
-    """20 s measures of an exp3 gait and of its CMA-ES polish (an FBL preset of exp3)."""
+    """20 s measures of a reference gait and of an exp3 CMA-ES polish (an FBL preset of exp3)."""
     _, before, _ = load_preset(start)
     model, vec, doc = load_preset(polished)
     assert model == "fbl" and doc["experiment"] == "exp3"
@@ -80,10 +80,7 @@ def test_exp3_walk_efficient_meets_exp3s_energy_and_angle_targets():
     C_angles above 0.8 on at most a human's 210 J/m, under 0.7 of ``exp3_walk_economy``'s
     energy per metre over the same 20 s (experiments/full/README.md, "exp3 from exp1's
     economical gait": 156 against 303 J/m over 60 s)."""
-    _, eco, _ = load_preset("exp3_walk_economy")
-    model, vec, doc = load_preset("exp3_walk_efficient")
-    assert model == "fbl" and doc["experiment"] == "exp3"
-    m, m_eco = _walk(vec, 20.0), _walk(eco, 20.0)
+    m_eco, m = _exp3_polish("exp3_walk_economy", "exp3_walk_efficient")
     assert not m["fell"] and 1.2 <= m["mean_speed_mps"] <= 1.4 and m["c_angles"] > 0.8
     assert m["energy_J_per_m"] <= 210.0
     assert m["energy_J_per_m"] < 0.7 * m_eco["energy_J_per_m"]

@@ -44,7 +44,7 @@ MUSCLES = ("HFL", "GLU", "HAM", "VAS", "GAS", "SOL", "TA")
 MUSCLES8 = MUSCLES + ("RF",)
 
 _NO_ARM, _CONST_ARM, _COS_ARM = 0, 1, 2
-_PER_MUSCLE = ("f_max", "v_max", "l_opt", "l_slack", "type1")  # (M,) columns
+_PER_MUSCLE = ("f_max", "v_max", "l_opt", "l_slack", "type1", "stim_max")  # (M,) columns
 _PER_JOINT = ("r0", "phi_max", "phi_ref", "rho", "sign", "arm")  # (M, 3) columns
 
 
@@ -100,11 +100,6 @@ class MuscleTable:
         m = len(self.names)
         if self.stim_max is None:
             object.__setattr__(self, "stim_max", np.ones(m))
-        smax = np.array(self.stim_max, dtype=np.float64)
-        if smax.shape != (m,) or not np.all(np.isfinite(smax)) or np.any(smax < 1.0):
-            raise ValueError(f"MuscleTable.stim_max: {m} finite values >= 1 expected, got {smax}")
-        smax.setflags(write=False)
-        object.__setattr__(self, "stim_max", smax)
         for k in _PER_MUSCLE:
             a = np.array(getattr(self, k), dtype=np.float64)
             if a.shape != (m,):
@@ -118,6 +113,10 @@ class MuscleTable:
                 raise ValueError(f"MuscleTable.{k}: shape {a.shape}, expected ({m}, 3)")
             a.setflags(write=False)
             object.__setattr__(self, k, a)
+        if not np.all(np.isfinite(self.stim_max) & (self.stim_max >= 1.0)):
+            raise ValueError(
+                f"MuscleTable.stim_max: finite values >= 1 expected, got {self.stim_max}"
+            )
         spans = self.arm != _NO_ARM
         if np.any(spans != (self.r0 > 0)) or np.any(spans != (self.sign != 0)):
             raise ValueError("MuscleTable: arm, r0 and sign disagree on which joints are spanned")
@@ -130,7 +129,7 @@ class MuscleTable:
     def tiled(self, reps: int) -> MuscleTable:
         """This table repeated ``reps`` times: muscle i of copy k at index k M + i, the order
         of a (..., reps, M) array with its last two axes merged (e.g. two legs)."""
-        per = {k: np.tile(getattr(self, k), reps) for k in _PER_MUSCLE + ("stim_max",)}
+        per = {k: np.tile(getattr(self, k), reps) for k in _PER_MUSCLE}
         arms = {k: np.tile(getattr(self, k), (reps, 1)) for k in _PER_JOINT}
         return dataclasses.replace(self, names=self.names * reps, **per, **arms)
 

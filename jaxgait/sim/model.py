@@ -354,7 +354,7 @@ def planar_model(
             )
         muscles = MUSCLE_TABLES[controller.n_muscles]
     if metabolic is None:
-        metabolic = "wang2012" if muscles is mus.WANG8 else "thesis"
+        metabolic = "wang2012" if muscles.names == mus.WANG8.names else "thesis"
     body = load_body("fbl_planar", timestep)
     return Model(
         body=body,

@@ -64,7 +64,7 @@ def rollout(preset: str, scales: dict[str, float], duration: float):
     )
     envb = envs.make_env_batch("flat", jax.random.PRNGKey(0)[None])
     trace, _, summary, _ = sim.make_rollout(mdl, cfg)(jnp.asarray(vec, jnp.float32)[None], envb)
-    return mdl, cfg, jax.tree_util.tree_map(lambda x: np.asarray(x[0]), trace), summary
+    return mdl, jax.tree_util.tree_map(lambda x: np.asarray(x[0]), trace), summary
 
 
 def main(argv=None):
@@ -80,7 +80,7 @@ def main(argv=None):
     cases = [(p, {}) for p in a.presets] + [(a.presets[0], v) for v in a.variant]
     rows = []
     for preset, scales in cases:
-        mdl, cfg, tr, summ = rollout(preset, scales, a.duration)
+        mdl, tr, summ = rollout(preset, scales, a.duration)
         alive = tr.alive & (tr.t >= a.skip)
         names = mdl.muscles.names
         table = phase_table(tr.act[:, 0], tr.stance[:, 0], alive, names, a.threshold)
