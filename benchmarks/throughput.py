@@ -34,9 +34,10 @@ def _peak_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def _setup(batch: int):
+def _setup(batch: int, dynamics: str = "mjx"):
     """(model, cfg, params, env, initial states) of ``batch`` FBL walkers on flat ground that
-    never stop (no fall or time criterion ends the benchmark's rollouts)."""
+    never stop (no fall or time criterion ends the benchmark's rollouts); ``dynamics`` is
+    :attr:`jaxgait.sim.SimConfig.dynamics`."""
     import jax
     import jax.numpy as jnp
 
@@ -44,7 +45,7 @@ def _setup(batch: int):
     from jaxgait.world import envs
 
     model = models.get_model("fbl")
-    cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3)
+    cfg = sim.SimConfig(duration=1e6, fall_hip_height=-1e3, fall_pitch=1e3, dynamics=dynamics)
     keys = jax.random.split(jax.random.PRNGKey(0), batch)
     env = envs.make_env_batch("flat", keys)
     params = jnp.broadcast_to(jnp.asarray(model.table.init, jnp.float32), (batch, model.table.size))

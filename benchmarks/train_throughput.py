@@ -30,10 +30,12 @@ import time
 from pathlib import Path
 
 
-def step_throughput(lanes: int, steps: int = 200, repeats: int = 3) -> float:
+def step_throughput(
+    lanes: int, steps: int = 200, repeats: int = 3, dynamics: str = "planar"
+) -> float:
     """env-steps/s of the bare FBL step at ``lanes`` per device on every device of this
     process (best of ``repeats``; ``shard_map`` over the devices), measured with the setup
-    and program of ``benchmarks/throughput.py``."""
+    and program of ``benchmarks/throughput.py``, with the training's ``dynamics``."""
     import jax
     import numpy as np
     from jax.sharding import Mesh, NamedSharding, PartitionSpec
@@ -41,7 +43,7 @@ def step_throughput(lanes: int, steps: int = 200, repeats: int = 3) -> float:
 
     devices = jax.devices()
     n = lanes * len(devices)
-    model, cfg, params, env, s0 = _setup(n)
+    model, cfg, params, env, s0 = _setup(n, dynamics)
     program = _full_program(model, cfg, steps)
     arg = (s0, params, env)
     if len(devices) > 1:
@@ -202,9 +204,10 @@ def from_history(path: Path, lanes: int | None) -> int:
     if lanes:
         import jax
 
-        step = step_throughput(lanes)
+        dynamics = cfg.get("dynamics", "mjx")  # as the run's rollouts
+        step = step_throughput(lanes, dynamics=dynamics)
         print(
-            f"  bare step at {jax.device_count()} device(s) x {lanes} lanes: {step:,.0f} "
+            f"  bare step ({dynamics}) at {jax.device_count()} device(s) x {lanes} lanes: {step:,.0f} "
             f"env-steps/s; realised / bare "
             f"{realised / step:.2f} (target 0.80)"
         )
@@ -303,8 +306,11 @@ def main(argv=None) -> int:
         )
     mean = sum(r["seconds"] for r in rows) / len(rows)
     realised = sum(r["env_steps_per_s"] * r["seconds"] for r in rows) / (mean * len(rows))
-    step = step_throughput(lanes)
-    print(f"\nbare step at {ev.n_devices} device(s) x {lanes} lanes: {step:,.0f} env-steps/s")
+    step = step_throughput(lanes, dynamics=exp.dynamics)
+    print(
+        f"\nbare step ({exp.dynamics}) at {ev.n_devices} device(s) x {lanes} lanes: "
+        f"{step:,.0f} env-steps/s"
+    )
     print(f"realised / bare step: {realised / step:.2f}")
     print(
         f"mean iteration {mean:.1f} s -> {a.full_iterations} iterations ~ "

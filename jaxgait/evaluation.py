@@ -241,7 +241,14 @@ def run(
             f"preset {label}: unknown start pose {pose!r}; "
             f"available: {', '.join(sorted(sim.POSES))}"
         )
-    cfg = sim.SimConfig(duration=float(duration), v0=float(v0), pose=pose, **cfg_kw)
+    dynamics = doc.get("dynamics", "mjx")  # a preset without the key was made with MJX's
+    if dynamics not in sim.DYNAMICS:
+        raise EvaluateError(
+            f"preset {label}: unknown dynamics {dynamics!r}; available: {', '.join(sim.DYNAMICS)}"
+        )
+    cfg = sim.SimConfig(
+        duration=float(duration), v0=float(v0), pose=pose, dynamics=dynamics, **cfg_kw
+    )
     env_cfg = env_config(env, env_overrides)
     environment = envs.make_env(env_cfg, jax.random.PRNGKey(int(seed)))
     params = mdl.table.as_jnp(vec)

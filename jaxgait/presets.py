@@ -454,7 +454,8 @@ def write_neutral_preset(src, dst, model: str = "fblplus") -> np.ndarray:
         source = str(path)
     lifted = lift(vec)
     table.check(lifted, where=str(dst))
-    start = {k: src_doc[k] for k in ("v0", "pose") if k in src_doc}  # the source's start
+    # the source's start and dynamics
+    start = {k: src_doc[k] for k in ("v0", "pose", "dynamics") if k in src_doc}
     save_preset(
         Path(dst),
         model,

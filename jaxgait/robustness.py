@@ -145,7 +145,9 @@ def main(argv=None) -> int:
             )
             declared, vec, doc = load_preset(a.preset)
             # the preset's start (as evaluate): its initial speed and posture
-            rcfg = dataclasses.replace(rcfg, v0=doc.get("v0"), pose=doc.get("pose"))
+            rcfg = dataclasses.replace(
+                rcfg, v0=doc.get("v0"), pose=doc.get("pose"), dynamics=doc.get("dynamics", "mjx")
+            )
             name, vec = params_for_model(declared, vec, a.model)
             model = get_model(name)
             rep = {"preset": str(a.preset), **robustness(model, vec, rcfg, tests)}

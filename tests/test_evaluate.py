@@ -453,6 +453,19 @@ def test_a_preset_starts_in_its_own_pose_and_an_unknown_pose_is_refused():
         evaluation.run({**d, "pose": "crouch"}, duration=0.01)
 
 
+def test_a_preset_runs_the_dynamics_it_was_made_with():
+    """A preset without ``dynamics`` (made before the option) runs MJX's passes; one that
+    says ``planar`` runs the planar tree; anything else is refused, naming it."""
+    from jaxgait import evaluation
+
+    d = json.loads(presets.resolve_preset("fbl_walk").read_text())
+    assert "dynamics" not in d
+    assert evaluation.run(d, duration=0.01).cfg.dynamics == "mjx"
+    assert evaluation.run({**d, "dynamics": "planar"}, duration=0.01).cfg.dynamics == "planar"
+    with pytest.raises(evaluation.EvaluateError, match="unknown dynamics 'ode'"):
+        evaluation.run({**d, "dynamics": "ode"}, duration=0.01)
+
+
 def test_plots_draw_the_reference_the_correlations_use(e2e, tmp_path, monkeypatch, capsys):
     """``--reference running --plots``: the joint-angle and GRF figures draw Fukuchi's running
     curves, the ones the correlations (and grf_corr) were computed against."""

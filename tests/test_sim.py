@@ -48,7 +48,8 @@ def _energy(model, qpos, qvel, contact_k, limit_k):
     return e
 
 
-def test_passive_drop_conserves_energy(fbl_model):
+@pytest.mark.parametrize("dynamics", ["mjx", "planar"])
+def test_passive_drop_conserves_energy(fbl_model, dynamics):
     """A passive drop with all damping off conserves energy.
 
     Muscles produce no force; the ligament springs, made stiff and centred on the pose,
@@ -61,7 +62,9 @@ def test_passive_drop_conserves_energy(fbl_model):
         cp = ContactParams(v_n_max=math.inf, v_t_max=math.inf, mu_slide=0.0, mu_stick=0.0)
         lim = SoftLimits(lower=tuple(pose), upper=tuple(pose), k=3000.0, omega_ref=math.inf)
         model = _passive(fbl_model, cp, lim)
-        cfg = sim.SimConfig(duration=10.0, v0=0.0, fall_hip_height=-10.0, fall_pitch=10.0)
+        cfg = sim.SimConfig(
+            duration=10.0, v0=0.0, fall_hip_height=-10.0, fall_pitch=10.0, dynamics=dynamics
+        )
         env = envs.make_env("flat", jax.random.PRNGKey(0))
         env = jax.tree.map(
             lambda x: jnp.asarray(x, jnp.float64) if x.dtype == jnp.float32 else x, env
@@ -91,12 +94,16 @@ def test_passive_drop_conserves_energy(fbl_model):
         jax.config.update("jax_enable_x64", False)
 
 
-def test_integrator_matches_mujoco_c_in_flight(fbl_model):
-    """With muscles off and the body in the air, the step is MuJoCo's semi-implicit Euler."""
+@pytest.mark.parametrize("dynamics", ["mjx", "planar"])
+def test_integrator_matches_mujoco_c_in_flight(fbl_model, dynamics):
+    """With muscles off and the body in the air, the step is MuJoCo's semi-implicit Euler
+    (with MJX's passes or the planar tree's equations of motion: both against the C library)."""
     jax.config.update("jax_enable_x64", True)
     try:
         model = _passive(fbl_model, limits=SoftLimits(lower=(-9.0,) * 3, upper=(9.0,) * 3))
-        cfg = sim.SimConfig(duration=10.0, v0=1.0, fall_hip_height=-10.0, fall_pitch=10.0)
+        cfg = sim.SimConfig(
+            duration=10.0, v0=1.0, fall_hip_height=-10.0, fall_pitch=10.0, dynamics=dynamics
+        )
         env = envs.make_env("flat", jax.random.PRNGKey(0))
         env = jax.tree.map(
             lambda x: jnp.asarray(x, jnp.float64) if x.dtype == jnp.float32 else x, env

@@ -253,6 +253,21 @@ def test_start_pose_is_written_only_when_not_geyers_and_reaches_the_simulator():
     assert PopulationEvaluator(run).sim_cfg.pose == "run"
 
 
+def test_dynamics_reach_the_simulator_and_the_best_preset(tmp_path):
+    """A new run's rollouts use the planar tree and its best preset says so (``evaluate``
+    then runs it the same way); a run configured with MJX's passes writes neither key."""
+    from jaxgait.train.evaluator import PopulationEvaluator
+
+    for dyn in ("planar", "mjx"):
+        exp = tiny("quickstart", duration=0.5, particles=2, iterations=1).replace(dynamics=dyn)
+        assert PopulationEvaluator(exp).sim_cfg.dynamics == dyn
+        res = tr.train(exp, tmp_path / dyn, progress=lambda *a: None, plots=False, video=False)
+        best = json.loads((res.out_dir / "best.json").read_text())
+        config = json.loads((res.out_dir / "config.json").read_text())["experiment"]
+        assert best.get("dynamics", "mjx") == dyn and config.get("dynamics", "mjx") == dyn
+        assert ("dynamics" in best) == (dyn == "planar")
+
+
 def test_reference_is_written_only_when_not_walking_and_scores_against_it():
     """``reference="running"``: the config says so (and only then), and the evaluator's
     grf_corr criterion is the rollout's vertical GRF against Fukuchi's running curve, the

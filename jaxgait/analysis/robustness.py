@@ -90,6 +90,8 @@ class RobustnessConfig:
         as ``evaluate`` does.
       pose: start posture (a key of :data:`jaxgait.sim.POSES`); None: Geyer's.  The command
         passes the preset's ``pose`` entry.
+      dynamics: :attr:`jaxgait.sim.SimConfig.dynamics` of the rollouts; the command passes
+        the preset's ``dynamics`` entry ("mjx" where it has none).
     """
 
     seeds: int = 5
@@ -110,6 +112,7 @@ class RobustnessConfig:
     log_dt: float = 0.1
     v0: float | None = None
     pose: str | None = None
+    dynamics: str = "mjx"
 
     def __post_init__(self):
         def need(ok, what):
@@ -147,6 +150,11 @@ class RobustnessConfig:
             from jaxgait.sim.model import POSES
 
             need(self.pose in POSES, f"pose={self.pose!r} (one of {', '.join(sorted(POSES))})")
+        from jaxgait.sim.model import DYNAMICS
+
+        need(
+            self.dynamics in DYNAMICS, f"dynamics={self.dynamics!r} (one of {', '.join(DYNAMICS)})"
+        )
         try:
             check_duration(self.duration, what="duration of the slope walks")
             check_duration(
@@ -285,6 +293,7 @@ def _sim_cfg(duration: float, rcfg: RobustnessConfig):
     start = {} if rcfg.v0 is None else {"v0": float(rcfg.v0)}
     if rcfg.pose is not None:
         start["pose"] = rcfg.pose
+    start["dynamics"] = rcfg.dynamics
     return sim.SimConfig(duration=float(duration), log_dt=rcfg.log_dt, chunk_s=1.0, **start)
 
 

@@ -167,6 +167,84 @@ class Body:
         jz = -h * r[..., 0]
         return jnp.stack([jx, jz], 1) + jnp.asarray(slide, dt)
 
+    # ---------------------------------------------------------------- dynamics
+    def _dynamics_constants(self):
+        """Static arrays of :meth:`mass_and_bias` (cached): the angular-velocity Jacobian
+        (nbody, nv), the ancestor mask (nbody, nbody), the rotational part of M (nv, nv) and
+        the gravity vector (x, z)."""
+        cache = self.__dict__.setdefault("_dyn_consts", None)
+        if cache is None:
+            m = self.mj_model
+            nb, nv = len(self.parent), m.nv
+            passive = {
+                "joint damping": m.dof_damping,
+                "joint armature": m.dof_armature,
+                "joint stiffness": m.jnt_stiffness,
+                "joint friction loss": m.dof_frictionloss,
+            }
+            for what, v in passive.items():
+                if np.any(np.asarray(v) != 0):
+                    raise ValueError(
+                        f"planar dynamics: the MJCF has {what}; use SimConfig(dynamics='mjx')"
+                    )
+            if not np.allclose(m.body_iquat[1:], [1, 0, 0, 0]):
+                raise ValueError(
+                    "planar dynamics: a body's inertia frame is rotated; use SimConfig(dynamics='mjx')"
+                )
+            jw = np.zeros((nb, nv))  # d(body pitch)/d(qvel): the hinges from the body to the world
+            anc = np.zeros((nb, nb))  # anc[b, k] = 1 if body k is b or one of its ancestors
+            for b in range(1, nb):
+                k = b
+                while k > 0:
+                    anc[b, k] = 1.0
+                    if self.hinge_q[k] >= 0:
+                        jw[b, self.hinge_q[k]] = self.hinge_sign[k]
+                    k = int(self.parent[k])
+            inertia = np.asarray(m.body_inertia[:, 1])  # about the hinge axis (y)
+            m_rot = np.einsum("b,bn,bm->nm", inertia[1:], jw[1:], jw[1:])
+            gravity = np.asarray(m.opt.gravity)[[0, 2]]
+            cache = self.__dict__["_dyn_consts"] = (jw, anc, m_rot, gravity)
+        return cache
+
+    def mass_and_bias(self, qpos: jax.Array, qvel: jax.Array):
+        """Joint-space mass matrix M (nv, nv) and bias force (nv,) of the planar tree.
+
+        The rigid-body equations of motion M(q) q_dd + b(q, q_d) = tau of the MJCF's bodies
+        (masses, centres of mass and y-axis inertias as MuJoCo compiles them), written for
+        the planar tree: with J_b the Jacobian of body b's centre of mass and j_b the
+        (constant) row of its pitch rate,
+
+            M = sum_b m_b J_b^T J_b + I_b j_b^T j_b,
+            b = sum_b m_b J_b^T (a_b - g),
+
+        a_b the velocity-product acceleration of the centre of mass, J_b_dot q_d: each body k
+        on the chain from the root to b turns its segment r_k (from its parent's origin to its
+        own origin, and from b's origin to the centre of mass) at its pitch rate w, so
+        a_b = -sum_k w_parent(k)^2 r_k - w_b^2 (c_b - o_b).  A planar body has no gyroscopic
+        torque and MuJoCo's bias is C(q, q_d) q_d + gravity (no passive forces in these
+        models: no joint damping, springs, armature or friction loss, checked here).  Equal
+        to MJX's composite-rigid-body and recursive Newton-Euler passes to rounding
+        (``tests/test_planar_dynamics.py``), in far fewer operations.
+        """
+        jw_np, anc_np, m_rot, gravity = self._dynamics_constants()
+        dt = qpos.dtype
+        nb = len(self.parent)
+        o, a = self.frames(qpos)
+        com = self._local_to_world(o[1:], a[1:], jnp.asarray(self.ipos[1:], dt))  # (nb-1, 2)
+        jac = self.point_jacobian(o, com, tuple(range(1, nb)))  # (nb-1, 2, nv)
+        mass = jnp.asarray(self.mass[1:], dt)
+        jw = jnp.asarray(jw_np, dt)
+        omega = jnp.sum(jw * qvel[None, :], axis=1)  # (nb,) pitch rates, world's 0
+        par = np.asarray(self.parent)
+        seg = (o[1:] - o[par[1:]]) * jnp.square(omega[par[1:]])[:, None]  # (nb-1, 2)
+        anc = jnp.asarray(anc_np[1:, 1:], dt)
+        acc = -jnp.sum(anc[:, :, None] * seg[None, :, :], axis=1)
+        acc = acc - jnp.square(omega[1:])[:, None] * (com - o[1:])
+        mj = mass[:, None, None] * jac
+        M = jnp.sum(mj[:, :, :, None] * jac[:, :, None, :], axis=(0, 1)) + jnp.asarray(m_rot, dt)
+        bias = jnp.sum(mj * (acc - jnp.asarray(gravity, dt))[:, :, None], axis=(0, 1))
+        return M, bias
+
     def sites_and_velocities(self, qpos, qvel, ids):
         """Site positions and velocities (len(ids), 2) via forward-mode AD."""
         return jax.jvp(lambda q: self.sites(q, ids), (qpos,), (qvel,))

@@ -8,6 +8,7 @@ The public API in one place: :class:`Model`, :class:`SimConfig`, :class:`SimStat
 
 from jaxgait.sim.model import (
     CONTACT_SITES,
+    DYNAMICS,
     LEG_JOINTS,
     POSES,
     Model,
@@ -20,6 +21,7 @@ from jaxgait.sim.step import initial_state, scheduled_command, step
 
 __all__ = [
     "CONTACT_SITES",
+    "DYNAMICS",
     "LEG_JOINTS",
     "POSES",
     "Model",

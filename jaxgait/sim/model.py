@@ -39,6 +39,8 @@ LEG_JOINTS = (("hip_r", "knee_r", "ankle_r"), ("hip_l", "knee_l", "ankle_l"))
 #: Choices of :attr:`SimConfig.start_activation` and :attr:`SimConfig.start_delays`.
 START_ACTIVATIONS = ("rest", "reflex")
 START_DELAYS = ("sensors", "zero")
+#: How a step gets the mass matrix and bias forces (:attr:`SimConfig.dynamics`).
+DYNAMICS = ("mjx", "planar")
 
 
 @dataclass(frozen=True)
@@ -68,6 +70,13 @@ class SimConfig:
         sensors, as if the body had stood still in its start pose) or ``"zero"`` (the
         controller initialised on all-zero sensors, as Simulink transport delays whose
         initial output is 0).
+      dynamics: where the step's mass matrix M and bias forces come from: ``"mjx"`` (MJX's
+        kinematics, composite-rigid-body and recursive Newton-Euler passes,
+        :meth:`Model.mass_and_forces`) or ``"planar"`` (the same rigid-body equations of the
+        MJCF's bodies written for the planar tree, :meth:`jaxgait.body.planar.Body.mass_and_bias`:
+        equal to MJX's to rounding, 1.5x faster a step at the training widths on the CPU,
+        ``benchmarks/README.md``).  Documents written without the key (presets, run configs)
+        were made with ``"mjx"`` and are evaluated with it.
     """
 
     duration: float = 20.0
@@ -84,11 +93,13 @@ class SimConfig:
     fall_pitch: float = 1.0
     start_activation: str = "rest"
     start_delays: str = "sensors"
+    dynamics: str = "mjx"
 
     def __post_init__(self):
         for name, ok in (
             ("start_activation", START_ACTIVATIONS),
             ("start_delays", START_DELAYS),
+            ("dynamics", DYNAMICS),
         ):
             if getattr(self, name) not in ok:
                 raise ValueError(
@@ -260,6 +271,16 @@ class Model:
         d = passive.passive(m, d)
         d = smooth.rne(m, d)
         return d._impl.M, qfrc_applied + d.qfrc_passive - d.qfrc_bias
+
+    def mass_and_forces_of(self, dynamics: str, qpos, qvel, qfrc_applied):
+        """M and the smooth force as :meth:`mass_and_forces`, from ``dynamics`` (``"mjx"`` or
+        ``"planar"``, :attr:`SimConfig.dynamics`)."""
+        if dynamics == "planar":
+            M, bias = self.body.mass_and_bias(qpos, qvel)
+            return M, qfrc_applied - bias
+        if dynamics != "mjx":
+            raise ValueError(f"dynamics must be one of {DYNAMICS}, got {dynamics!r}")
+        return self.mass_and_forces(qpos, qvel, qfrc_applied)
 
     @property
     def mass(self) -> float:

@@ -360,8 +360,8 @@ def step(
     a = jnp.concatenate([crow.a_n, crow.a_t, a_lim])
     c = jnp.concatenate([crow.c_n, crow.c_t, c_lim])
 
-    # 4. MJX multibody dynamics: mass matrix M and bias forces (constraint solver off)
-    M, qfrc_smooth = model.mass_and_forces(s.qpos, s.qvel, qfrc)
+    # 4. multibody dynamics: mass matrix M and bias forces (MJX's passes or the planar tree's)
+    M, qfrc_smooth = model.mass_and_forces_of(cfg.dynamics, s.qpos, s.qvel, qfrc)
 
     # 5. implicit rows, then the forces each law allows, applied through M
     y = implicit_row_velocities(J, a, c, M, s.qvel, qfrc_smooth, dt, model.dof_parents)

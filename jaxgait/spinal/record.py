@@ -99,7 +99,7 @@ def record(
     IN signals every ``log_dt`` [s] for ``duration`` [s] in environment ``env``."""
     declared, vec, doc = load_preset(preset)
     name = network_model_name(declared)
-    start = {k: doc[k] for k in ("v0", "pose") if k in doc}
+    start = {k: doc[k] for k in ("v0", "pose", "dynamics") if k in doc}
     cfg = SimConfig(duration=float(duration), log_dt=float(log_dt), **start)
     e = envs.make_env(env, jax.random.PRNGKey(int(seed)))
     model = models.get_model(name)

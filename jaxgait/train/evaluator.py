@@ -235,7 +235,7 @@ class PopulationEvaluator:
         self.model = get_model(exp.model, exp.init)
         self.mesh = population_mesh(devices)
         self.n_devices = self.mesh.devices.size
-        self.sim_cfg = sim.SimConfig(duration=exp.duration, pose=exp.pose)
+        self.sim_cfg = sim.SimConfig(duration=exp.duration, pose=exp.pose, dynamics=exp.dynamics)
         self.env_cfg = exp.env_config()
         self.objective = exp.objective()
         self.rollout = _batched_rollout(exp.model, self.sim_cfg)

@@ -138,6 +138,7 @@ def save_best(
         value=float(state.best_value),
         v0=float(exp.v0),
         **({} if exp.pose == "geyer" else {"pose": exp.pose}),
+        **({} if exp.dynamics == "mjx" else {"dynamics": exp.dynamics}),
         **extra,
     )
     _atomic_write(
