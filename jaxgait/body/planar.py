@@ -189,9 +189,10 @@ class Body:
                     )
             if not np.allclose(m.body_iquat[1:], [1, 0, 0, 0]):
                 raise ValueError(
-                    "planar dynamics: a body's inertia frame is rotated; use SimConfig(dynamics='mjx')"
+                    "planar dynamics: a body's inertia frame is rotated; "
+                    "use SimConfig(dynamics='mjx')"
                 )
-            jw = np.zeros((nb, nv))  # d(body pitch)/d(qvel): the hinges from the body to the world
+            jw = np.zeros((nb, nv))  # d(pitch)/d(qvel): the hinges up to the world
             anc = np.zeros((nb, nb))  # anc[b, k] = 1 if body k is b or one of its ancestors
             for b in range(1, nb):
                 k = b
