@@ -207,8 +207,8 @@ def from_history(path: Path, lanes: int | None) -> int:
         dynamics = cfg.get("dynamics", "mjx")  # as the run's rollouts
         step = step_throughput(lanes, dynamics=dynamics)
         print(
-            f"  bare step ({dynamics}) at {jax.device_count()} device(s) x {lanes} lanes: {step:,.0f} "
-            f"env-steps/s; realised / bare "
+            f"  bare step ({dynamics}) at {jax.device_count()} device(s) x {lanes} lanes: "
+            f"{step:,.0f} env-steps/s; realised / bare "
             f"{realised / step:.2f} (target 0.80)"
         )
     return 0
