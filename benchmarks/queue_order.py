@@ -100,6 +100,7 @@ def record(name: str, iterations: int, out: Path) -> Path:
         caps=np.stack([caps[i] for i in keep]),
         durs=np.stack([durs[i] for i in keep]),
         utils=np.array([utils[i] for i in keep]),
+        drain=np.array(ev.drain_widths(ev.CPU_AUTO_LANES), dtype=int),
     )
     return out
 
@@ -114,6 +115,12 @@ def main(argv=None) -> None:
     ap.add_argument("--lanes", type=int, nargs="+", default=[12], help="lanes per device")
     ap.add_argument("--chunk-s", type=float, default=0.25)
     ap.add_argument("--chunk-cost", type=float, nargs=2, default=(0.0524, 0.00664))
+    ap.add_argument(
+        "--drain",
+        nargs="+",
+        help="drain widths to compare, each comma-separated (e.g. 3,1 6,3,1; 'none' for no "
+        "drain); default the evaluator's own for each lane count",
+    )
     a = ap.parse_args(argv)
     from jaxgait.core import host_devices
 
@@ -123,7 +130,9 @@ def main(argv=None) -> None:
     caps, durs = data["caps"], data["durs"]
     from jaxgait.train.evaluator import CPU_AUTO_LANES, drain_widths
 
-    # the model against the scheduler's own count, generation by generation
+    # the model against the scheduler's own count, generation by generation (files written
+    # before the drain was recorded ran the evaluator's earlier (3, 1))
+    recorded_drain = tuple(data["drain"].tolist()) if "drain" in data.files else (3, 1)
     if "utils" in data.files:
         model = [
             simulate(
@@ -131,7 +140,7 @@ def main(argv=None) -> None:
                 np.argsort(-caps[i], kind="stable"),
                 devices=a.devices,
                 lanes=CPU_AUTO_LANES,
-                drain=drain_widths(CPU_AUTO_LANES),
+                drain=recorded_drain,
                 chunk_s=a.chunk_s,
                 cost=a.chunk_cost,
             )
@@ -148,8 +157,12 @@ def main(argv=None) -> None:
         f"({path})"
     )
     base = None
-    for lanes in a.lanes:
-        drain = drain_widths(lanes)
+    drains = [
+        None if d is None else () if d == "none" else tuple(int(w) for w in d.split(","))
+        for d in (a.drain or [None])
+    ]
+    cases = [(lanes, drain_widths(lanes) if d is None else d) for lanes in a.lanes for d in drains]
+    for lanes, drain in cases:
         totals: dict[str, list[float]] = {}
         for i in range(1, len(caps)):  # from the second: each needs its previous generation
             for k, order in orders(caps[i], durs[i], durs[i - 1]).items():
@@ -169,7 +182,7 @@ def main(argv=None) -> None:
         base = base or totals["cap"][2]
         for k, (b, t, s) in totals.items():
             print(
-                f"{lanes:3d} lanes, drain {str(drain):8} {k:>13}: utilisation {b / t:.3f}, "
+                f"{lanes:3d} lanes, drain {str(drain):10} {k:>13}: utilisation {b / t:.3f}, "
                 f"modelled wall {s:7.1f} s ({s / base:.3f} x the first cap row)"
             )
 

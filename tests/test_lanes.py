@@ -115,6 +115,21 @@ def test_lanes_must_be_positive(fbl_model, mixed):
             lane_rollouts(fbl_model, CFG, params, env, _finish, 2, drain=bad)
 
 
+def test_evaluator_drain_ladder_is_valid():
+    """The evaluator's drain widths are what ``lane_rollouts`` accepts for every lane count,
+    end at one lane and shrink by at most a third of the lanes per width (12: 8, 4, 1)."""
+    from jaxgait.train.evaluator import drain_widths
+
+    for lanes in range(1, 33):
+        widths = drain_widths(lanes)
+        assert list(widths) == sorted(set(widths), reverse=True), lanes
+        assert all(1 <= w < lanes for w in widths), lanes
+        assert (widths[-1] == 1) if lanes > 1 else widths == ()
+        steps = [a - b for a, b in zip((lanes, *widths), widths, strict=False)]
+        assert all(d <= -(-lanes // 3) + 1 for d in steps[:-1]), (lanes, widths)
+    assert drain_widths(12) == (8, 4, 1)
+
+
 @pytest.mark.slow
 def test_queued_training_evaluation_equals_direct_calls(fbl_model):
     """The population evaluator with ``lanes`` scores every candidate as the direct calls do,

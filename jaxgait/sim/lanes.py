@@ -135,13 +135,23 @@ def lane_rollouts(
         summary = jax.vmap(lambda st: summary_of(model, st))(s)
         return finish(rows, s.events, summary, aux_rows)
 
-    def finish_ended(trace, s, item, ended, results):
-        """``finish`` on each ended lane alone (a batch of one), its result in its slot."""
+    def finish_ended(trace, s, item, k, ended, results):
+        """``finish`` on each ended lane alone (a batch of one), its result in its slot.
+
+        A lane's buffer keeps the rows of its earlier rollouts past those its current one
+        wrote (``k`` chunks); they are zeroed here, in the ended lane's copy only, so
+        ``finish`` sees the trace of the rollout alone (zero past its end) without a refill
+        clearing every lane's whole buffer."""
         order = jnp.argsort(~ended, stable=True)  # the ended lanes first
+        row = jnp.arange(n_chunks * rpc)
+
+        def mine(x, lane):
+            written = row < k[lane] * rpc
+            return jnp.where(written.reshape((-1,) + (1,) * (x.ndim - 2)), x[lane], 0)[None]
 
         def one(i, res):
             lane = order[i]
-            tr = jax.tree.map(lambda x: x[lane][None], trace)
+            tr = jax.tree.map(lambda x: mine(x, lane), trace)
             st = jax.tree.map(lambda x: x[lane][None], s)
             a = None if aux is None else _take(aux, item[lane][None])
             out = finish_all(tr, st, a)
@@ -177,7 +187,7 @@ def lane_rollouts(
         )
         k = k + 1
         ended = active & (s.done | (k >= n_chunks))
-        results = finish_ended(trace, s, item, ended, results)
+        results = finish_ended(trace, s, item, k, ended, results)
         # the ended lanes take the next rollouts of the queue, in lane order
         new_item = nxt + jnp.cumsum(ended) - 1
         take = ended & (new_item < q)
@@ -185,14 +195,10 @@ def lane_rollouts(
         nxt = nxt + take.sum().astype(jnp.int32)
         active = (active & ~ended) | take
 
-        def refill(s, trace, lane_in):
-            s = _select(take, start(item), s)
-            trace = _select(take, jax.tree.map(jnp.zeros_like, trace), trace)
-            return s, trace, inputs(item)
+        def refill(s, lane_in):
+            return _select(take, start(item), s), inputs(item)
 
-        s, trace, lane_in = jax.lax.cond(
-            jnp.any(take), refill, lambda s, t, li: (s, t, li), s, trace, lane_in
-        )
+        s, lane_in = jax.lax.cond(jnp.any(take), refill, lambda s, li: (s, li), s, lane_in)
         k = jnp.where(take, 0, k)
         return item, lane_in, active, k, s, trace, nxt, results, stats
 
