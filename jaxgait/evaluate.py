@@ -161,6 +161,13 @@ def _parser() -> argparse.ArgumentParser:
         help="interval of the logged trajectory (CSV, plots) in seconds, a multiple of the "
         "physics step (default 0.01; 0.0005 logs every step)",
     )
+    p.add_argument(
+        "--dynamics",
+        choices=("mjx", "planar"),
+        default=None,
+        help="multibody dynamics to simulate with (default: the preset's own, written by "
+        "train; mjx for a preset without it); the two agree to rounding",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.add_argument(
         "--save-trajectory",
@@ -246,7 +253,9 @@ def format_report(rep: dict) -> str:
             if rep.get("preset_file") and rep.get("preset_file") != rep.get("preset")
             else ""
         )
-        + f"\nmodel {rep.get('model')}, environment {rep.get('env')} "
+        + f"\nmodel {rep.get('model')}"
+        + (f" ({rep['dynamics']} dynamics)" if rep.get("dynamics") else "")
+        + f", environment {rep.get('env')} "
         f"(seed {rep.get('env_seed')}), {rep.get('duration_requested_s', 0):g} s requested"
     )
     lines = [head, ""]
@@ -329,6 +338,8 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
         if not a.json:
             print(f"simulating {label} ({name}, {a.env}, {a.duration:g} s)...", file=sys.stderr)
         result = motion = None
+        if name == "taga" and a.dynamics is not None:
+            return err("--dynamics: the Taga biped has its own equations (no MJX or planar tree)")
         if name == "taga":
             out = _evaluate_taga(
                 doc, label, file, a.env, a.duration, a.env_seed, a.video is not None
@@ -347,6 +358,7 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
                 reference=a.reference,
                 log_dt=a.log_dt,
                 env_overrides=env_overrides,
+                dynamics=a.dynamics,
             )
             rep = result.report
             if a.video is not None:

@@ -184,6 +184,7 @@ def run(
     reference: str = "walking",
     log_dt: float | None = None,
     env_overrides: dict | None = None,
+    dynamics: str | None = None,
 ) -> EvalRun:
     """Simulate an FBL-family preset once and measure it.
 
@@ -204,6 +205,11 @@ def run(
         measured at the physics step whatever it is.
       env_overrides: fields of the environment's config to replace (e.g. ``{"fraction":
         0.2}`` for ``weight_support``); reported under ``env_overrides``.
+      dynamics: ``"mjx"`` or ``"planar"`` (:data:`jaxgait.sim.DYNAMICS`), the multibody
+        dynamics to simulate with; default the preset's ``dynamics`` entry (written by
+        ``train``), else ``"mjx"`` (a preset without it was made with MJX's passes).  The
+        two agree to rounding, but a gait in a narrow basin can fall under the other's
+        rounding; reported under ``dynamics``.
 
     Returns:
       An :class:`EvalRun` (report, measures, trace, events, summary, final state...).
@@ -241,10 +247,13 @@ def run(
             f"preset {label}: unknown start pose {pose!r}; "
             f"available: {', '.join(sorted(sim.POSES))}"
         )
-    dynamics = doc.get("dynamics", "mjx")  # a preset without the key was made with MJX's
+    own = dynamics is None
+    if own:
+        dynamics = doc.get("dynamics", "mjx")  # a preset without the key was made with MJX's
     if dynamics not in sim.DYNAMICS:
+        where = f"preset {label}" if own else "dynamics"
         raise EvaluateError(
-            f"preset {label}: unknown dynamics {dynamics!r}; available: {', '.join(sim.DYNAMICS)}"
+            f"{where}: unknown dynamics {dynamics!r}; available: {', '.join(sim.DYNAMICS)}"
         )
     cfg = sim.SimConfig(
         duration=float(duration), v0=float(v0), pose=pose, dynamics=dynamics, **cfg_kw
@@ -257,6 +266,7 @@ def run(
     to_np = lambda tree: jax.tree.map(np.asarray, tree)
     meas, trace, events, summary = to_np(meas), to_np(trace), to_np(events), to_np(summary)
     rep = _report(meas, label=label, file=file, model=name, env=env, seed=seed, duration=duration)
+    rep["dynamics"] = dynamics
     if env_overrides:
         rep["env_overrides"] = dict(env_overrides)
     return EvalRun(rep, meas, trace, events, summary, final, mdl, vec, doc, environment, cfg)

@@ -466,6 +466,34 @@ def test_a_preset_runs_the_dynamics_it_was_made_with():
         evaluation.run({**d, "dynamics": "ode"}, duration=0.01)
 
 
+def test_dynamics_can_be_chosen_over_the_presets_own(tmp_path, capsys):
+    """``run(dynamics=...)`` and ``evaluate --dynamics`` simulate a preset with the other
+    dynamics than it was made with (reported); the two agree to rounding over a short walk;
+    a bad name is refused, and so is the option for the Taga biped."""
+    from jaxgait import evaluation, sim
+
+    assert set(sim.DYNAMICS) == {"mjx", "planar"}  # the CLI's choices
+    d = json.loads(presets.resolve_preset("fbl_walk").read_text())
+    runs = {k: evaluation.run(d, duration=0.5, dynamics=k) for k in ("mjx", "planar")}
+    assert {k: r.cfg.dynamics for k, r in runs.items()} == {"mjx": "mjx", "planar": "planar"}
+    assert runs["planar"].report["dynamics"] == "planar"
+    np.testing.assert_allclose(
+        np.asarray(runs["planar"].trace.qpos), np.asarray(runs["mjx"].trace.qpos), atol=1e-3
+    )
+    planar_doc = {**d, "dynamics": "planar"}
+    assert evaluation.run(planar_doc, duration=0.01, dynamics="mjx").cfg.dynamics == "mjx"
+    with pytest.raises(evaluation.EvaluateError, match="dynamics: unknown dynamics 'ode'"):
+        evaluation.run(d, duration=0.01, dynamics="ode")
+    capsys.readouterr()
+    assert ev.main(["fbl_walk", "--duration", "0.05", "--json", "--dynamics", "planar"]) == 0
+    assert json.loads(capsys.readouterr().out)["dynamics"] == "planar"
+    assert ev.main(["fbl_walk", "--dynamics", "ode"]) == 2
+    assert "invalid choice" in capsys.readouterr().err
+    taga = write_json(tmp_path / "taga.json", {"model": "taga", "params": {"u0": 5.0}})
+    assert ev.main([str(taga), "--dynamics", "planar"]) == 2
+    assert "Taga biped has its own equations" in capsys.readouterr().err
+
+
 def test_plots_draw_the_reference_the_correlations_use(e2e, tmp_path, monkeypatch, capsys):
     """``--reference running --plots``: the joint-angle and GRF figures draw Fukuchi's running
     curves, the ones the correlations (and grf_corr) were computed against."""
