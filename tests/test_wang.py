@@ -504,15 +504,17 @@ def test_every_shipped_wang_preset_walks_or_runs_20s_near_its_target():
     names = _wang_gaits()
     assert "wang_walk_1p25" in names
     model = models.get_model("wang8")
-    vecs, v0s, targets = [], [], []
+    vecs, starts, targets = [], [], []
     for n in names:
         _, vec, doc = load_preset(n)
         vecs.append(vec)
-        v0s.append(float(doc.get("v0", 1.3)))
+        # each with the start speed and the dynamics it was made with (a preset without the
+        # key was made with MJX's passes)
+        starts.append((float(doc.get("v0", 1.3)), doc.get("dynamics", "mjx")))
         targets.append(float(n.split("_")[2].replace("p", ".")))
-    for v0 in sorted(set(v0s)):  # one batch per start speed (v0 is static)
-        idx = [i for i, v in enumerate(v0s) if v == v0]
-        cfg = sim.SimConfig(duration=20.0, log_dt=0.1, v0=v0)
+    for v0, dynamics in sorted(set(starts)):  # one batch per start (both are static)
+        idx = [i for i, v in enumerate(starts) if v == (v0, dynamics)]
+        cfg = sim.SimConfig(duration=20.0, log_dt=0.1, v0=v0, dynamics=dynamics)
         env = envs.make_env_batch("flat", jax.random.split(jax.random.PRNGKey(0), len(idx)))
         f = sim.make_rollout(model, cfg, batched=True)
         _, _, s, _ = f(jnp.asarray(np.stack([vecs[i] for i in idx]), jnp.float32), env)
@@ -537,7 +539,8 @@ def _falls_under_pushes(names, magnitude: float, times=(4.0, 6.3)) -> dict[str, 
     fell = {}
     for name in names:
         _, vec, doc = load_preset(name)
-        cfg = sim.SimConfig(duration=20.0, log_dt=0.1, v0=float(doc.get("v0", 1.3)))
+        v0, dynamics = float(doc.get("v0", 1.3)), doc.get("dynamics", "mjx")
+        cfg = sim.SimConfig(duration=20.0, log_dt=0.1, v0=v0, dynamics=dynamics)
         f = sim.make_rollout(model, cfg, batched=True)
         params = jnp.broadcast_to(jnp.asarray(vec, jnp.float32), (len(times), vec.size))
         fell[name] = np.asarray(f(params, env)[2].fell).tolist()

@@ -28,7 +28,8 @@ def main(argv=None):
     _, base, doc = load_preset(a.preset)
     model = models.get_model(doc["model"])
     pose = doc.get("pose", sim.SimConfig.pose)
-    cfg = sim.SimConfig(duration=a.duration, v0=doc["v0"], pose=pose)
+    dynamics = doc.get("dynamics", "mjx")  # the preset's own (none: made with MJX's passes)
+    cfg = sim.SimConfig(duration=a.duration, v0=doc["v0"], pose=pose, dynamics=dynamics)
     run = sim.make_rollout(model, cfg)
     for b in (int(x) for x in a.batches.split(",")):
         params = jnp.tile(jnp.asarray(base, jnp.float32), (b, 1))

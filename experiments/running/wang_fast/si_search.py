@@ -11,10 +11,14 @@ initiation is never entered").  Usage::
 import dataclasses
 import sys
 
-from jaxgait import models
-from jaxgait.control.wang import WANG_RUN_CONTROLLER
-from jaxgait.core.params import ParamTable
-from jaxgait.train.cli import main
+from jaxgait.core import host_devices
+
+host_devices.use_cpu_cores()  # as `python -m jaxgait.train`: one XLA device per core
+
+from jaxgait import models  # noqa: E402
+from jaxgait.control.wang import WANG_RUN_CONTROLLER  # noqa: E402
+from jaxgait.core.params import ParamTable  # noqa: E402
+from jaxgait.train.cli import main  # noqa: E402
 
 SI_RANGE = (0.35, 0.6)
 
