@@ -95,7 +95,8 @@ flat ground and 120 m on the perturbed environments, entrance conditions of Tabl
 * wang_run_3p0 / 4p0 / 5p0 (Wang section 6, running): the same search at v* = 3, 4, 5 m/s
   plus 20 x (-double-stance fraction); as Wang, 3 m/s starts from the preset
   ``wang_run_start`` (the table's Geyer-Herr values with the GAS and SOL force-feedback gains
-  doubled) at v0 = 3.05 m/s, and each faster one from the slower one's solution.
+  doubled) at v0 = 3.05 m/s, and each faster one from the slower one's solution (on
+  ``wang8_run``, the running ranges the shipped ``wang_run_3p0`` needs).
 * wang_push_walk_1p25, wang_push_run_4p0 (Wang section 6): nwalk and the 4 m/s runner
   re-optimised on environment 2 with one 100 N (50 N for running), 0.4 s forward push on the
   trunk at a random time in 3-8 s, the worst of 4 push times kept (a push at any phase).
@@ -727,6 +728,9 @@ EXPERIMENTS: dict[str, Experiment] = {
                 weights=_WANG_WEIGHTS + (("no_double_stance", 20.0),),
                 iterations=80,
                 v0=v0,
+                # from a shipped runner: its box (the running ranges, which wang_run_3p0
+                # leaves wang8's for)
+                **({} if init == "wang_run_start" else {"model": "wang8_run"}),
             )
             for v, v0, init in (
                 (3, 3.05, "wang_run_start"),
@@ -749,6 +753,7 @@ EXPERIMENTS: dict[str, Experiment] = {
             4.0,
             "wang_run_4p0",
             "4 m/s running tolerant of 50 N, 0.4 s forward pushes (worst of 4 push times)",
+            model="wang8_run",
             env="push",
             env_overrides=(("magnitude", 50.0), ("duration", 0.4)),
             worst_of_k=4,
