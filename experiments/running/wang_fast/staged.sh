@@ -2,7 +2,8 @@
 # Wang's runner with the knee as a stage (experiments/running/README.md, "The knee as a
 # stage"): CMA-ES 48 candidates on a stage objective, 10 s rollouts up to 24 m, from INIT
 # (default the swing-initiation horizon run's best), resumed to 160 and 300 generations, then
-# 50 generations of 20 s rollouts up to 50 m with the flight fraction as a fifth stage.
+# 50 generations of 20 s rollouts up to 50 m with the flight fraction as a fifth stage, and
+# 150 generations aimed at 4 m/s from there (w4).
 #
 # Usage: staged.sh OUTDIR [INIT]
 set -euo pipefail
@@ -22,3 +23,6 @@ $TRAIN wang_run_3p0 "${common[@]}" --set init="$init" --set iterations=60 --set 
   --set "stages=$S" --set 'optimiser_options={"sigma_init":0.02}' --out "$out/wk3" --resume --iterations 300
 $TRAIN wang_run_3p0 "${common[@]}" --set init="$out/wk3" --set iterations=50 --set duration=20 --set d_lim=50 \
   --set "stages=$S5" --set 'optimiser_options={"sigma_init":0.01}' --out "$out/wk20"
+# towards 4 m/s: the same five stages from wk20 at v* 4.0, rollouts of 10 s up to 28 m
+$TRAIN wang_run_4p0 "${common[@]}" --set targets.v_desired=4.0 --set init="$out/wk20" --set iterations=150 \
+  --set duration=10 --set d_lim=28 --set "stages=$S5" --set 'optimiser_options={"sigma_init":0.02}' --out "$out/w4"
