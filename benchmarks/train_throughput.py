@@ -207,7 +207,9 @@ def from_history(path: Path, lanes: int | None, bare_rounds: int = 3) -> int:
     if lanes:
         import jax
 
-        dynamics = cfg.get("dynamics", "mjx")  # as the run's rollouts
+        from jaxgait.presets import preset_dynamics
+
+        dynamics = preset_dynamics(cfg)  # as the run's rollouts
         # the bare figure varies by 10-20 % from call to call on a shared machine: several
         # rounds, the ratio against the fastest (the step's own throughput) and the slowest
         rounds = [step_throughput(lanes, dynamics=dynamics) for _ in range(bare_rounds)]

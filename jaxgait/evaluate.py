@@ -338,9 +338,11 @@ def _main(a: argparse.Namespace) -> tuple[int, str | None]:
         if not a.json:
             print(f"simulating {label} ({name}, {a.env}, {a.duration:g} s)...", file=sys.stderr)
         result = motion = None
-        if name == "taga" and a.dynamics is not None:
-            return err("--dynamics: the Taga biped has its own equations (no MJX or planar tree)")
         if name == "taga":
+            if a.dynamics is not None:
+                return err(
+                    "--dynamics: the Taga biped has its own equations (no MJX or planar tree)"
+                )
             out = _evaluate_taga(
                 doc, label, file, a.env, a.duration, a.env_seed, a.video is not None
             )

@@ -20,7 +20,7 @@ from jaxgait import models
 from jaxgait.analysis.refdata import GAIT_REFERENCES
 from jaxgait.core.jsonio import json_safe
 from jaxgait.core.limits import LimitError, check_duration
-from jaxgait.presets import load_preset, preset_from_dict, resolve_preset
+from jaxgait.presets import load_preset, preset_dynamics, preset_from_dict, resolve_preset
 
 
 class EvaluateError(ValueError):
@@ -249,7 +249,7 @@ def run(
         )
     own = dynamics is None
     if own:
-        dynamics = doc.get("dynamics", "mjx")  # a preset without the key was made with MJX's
+        dynamics = preset_dynamics(doc)
     if dynamics not in sim.DYNAMICS:
         where = f"preset {label}" if own else "dynamics"
         raise EvaluateError(

@@ -392,6 +392,13 @@ def load_preset(name_or_path: str | Path) -> tuple[str, np.ndarray, dict]:
     return preset_from_dict(doc, where=str(path))
 
 
+def preset_dynamics(doc: dict) -> str:
+    """The multibody dynamics a preset (or a results ``config.json``'s experiment) was made
+    with: its ``dynamics`` entry, or ``"mjx"`` without one (``train`` writes the entry only
+    for the planar tree; everything made before the option ran MJX's passes)."""
+    return doc.get("dynamics", "mjx")
+
+
 #: Models that extend another with neutral extras: model -> (table, source model, lift
 #: function, description of the neutral extras).  A neutral preset of one walks like its
 #: source (module docstrings: FBL+ bit for bit, fbl_ankle and fblplus_bal to float32

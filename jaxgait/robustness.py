@@ -29,7 +29,7 @@ from jaxgait import models
 from jaxgait.analysis.robustness import TEST_CHOICES, RobustnessConfig, robustness
 from jaxgait.control.fblplus import lift_fbl
 from jaxgait.core.jsonio import json_safe
-from jaxgait.presets import load_preset
+from jaxgait.presets import load_preset, preset_dynamics
 
 
 def model_choices() -> tuple[str, ...]:
@@ -146,7 +146,7 @@ def main(argv=None) -> int:
             declared, vec, doc = load_preset(a.preset)
             # the preset's start (as evaluate): its initial speed and posture
             rcfg = dataclasses.replace(
-                rcfg, v0=doc.get("v0"), pose=doc.get("pose"), dynamics=doc.get("dynamics", "mjx")
+                rcfg, v0=doc.get("v0"), pose=doc.get("pose"), dynamics=preset_dynamics(doc)
             )
             name, vec = params_for_model(declared, vec, a.model)
             model = get_model(name)

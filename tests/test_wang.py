@@ -499,7 +499,7 @@ def test_every_shipped_wang_preset_walks_or_runs_20s_near_its_target():
     or with a suffix: ``wang_walk_1p25_human``), goes 20 s on flat ground without a fall
     within 0.1 m/s of the speed its name gives (the push-tolerant ones are checked against
     their pushes below)."""
-    from jaxgait.presets import load_preset
+    from jaxgait.presets import load_preset, preset_dynamics
 
     names = _wang_gaits()
     assert "wang_walk_1p25" in names
@@ -508,9 +508,8 @@ def test_every_shipped_wang_preset_walks_or_runs_20s_near_its_target():
     for n in names:
         _, vec, doc = load_preset(n)
         vecs.append(vec)
-        # each with the start speed and the dynamics it was made with (a preset without the
-        # key was made with MJX's passes)
-        starts.append((float(doc.get("v0", 1.3)), doc.get("dynamics", "mjx")))
+        # each with the start speed and the dynamics it was made with
+        starts.append((float(doc.get("v0", 1.3)), preset_dynamics(doc)))
         targets.append(float(n.split("_")[2].replace("p", ".")))
     for v0, dynamics in sorted(set(starts)):  # one batch per start (both are static)
         idx = [i for i, v in enumerate(starts) if v == (v0, dynamics)]
@@ -528,7 +527,7 @@ def _falls_under_pushes(names, magnitude: float, times=(4.0, 6.3)) -> dict[str, 
     """Per preset of ``names``: did it fall within 20 s on flat ground under one forward
     ``magnitude`` [N], 0.4 s push on the trunk at each of ``times`` [s] (one rollout each,
     from the preset's v0)?"""
-    from jaxgait.presets import load_preset
+    from jaxgait.presets import load_preset, preset_dynamics
 
     model = models.get_model("wang8")
     cfgs = [
@@ -539,7 +538,7 @@ def _falls_under_pushes(names, magnitude: float, times=(4.0, 6.3)) -> dict[str, 
     fell = {}
     for name in names:
         _, vec, doc = load_preset(name)
-        v0, dynamics = float(doc.get("v0", 1.3)), doc.get("dynamics", "mjx")
+        v0, dynamics = float(doc.get("v0", 1.3)), preset_dynamics(doc)
         cfg = sim.SimConfig(duration=20.0, log_dt=0.1, v0=v0, dynamics=dynamics)
         f = sim.make_rollout(model, cfg, batched=True)
         params = jnp.broadcast_to(jnp.asarray(vec, jnp.float32), (len(times), vec.size))

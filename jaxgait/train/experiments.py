@@ -728,14 +728,14 @@ EXPERIMENTS: dict[str, Experiment] = {
                 weights=_WANG_WEIGHTS + (("no_double_stance", 20.0),),
                 iterations=80,
                 v0=v0,
-                # from a shipped runner: its box (the running ranges, which wang_run_3p0
-                # leaves wang8's for)
-                **({} if init == "wang_run_start" else {"model": "wang8_run"}),
+                model=model,
             )
-            for v, v0, init in (
-                (3, 3.05, "wang_run_start"),
-                (4, 4.0, "wang_run_3p0"),
-                (5, 5.0, "wang_run_4p0"),
+            # each faster run starts from the slower one's runner, in the running ranges
+            # (wang8_run) that the shipped wang_run_3p0 needs
+            for v, v0, init, model in (
+                (3, 3.05, "wang_run_start", "wang8"),
+                (4, 4.0, "wang_run_3p0", "wang8_run"),
+                (5, 5.0, "wang_run_4p0", "wang8_run"),
             )
         ),
         _wang(

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxgait import models, sim
-from jaxgait.presets import load_preset
+from jaxgait.presets import load_preset, preset_dynamics
 from jaxgait.world import envs
 
 
@@ -28,8 +28,7 @@ def main(argv=None):
     _, base, doc = load_preset(a.preset)
     model = models.get_model(doc["model"])
     pose = doc.get("pose", sim.SimConfig.pose)
-    dynamics = doc.get("dynamics", "mjx")  # the preset's own (none: made with MJX's passes)
-    cfg = sim.SimConfig(duration=a.duration, v0=doc["v0"], pose=pose, dynamics=dynamics)
+    cfg = sim.SimConfig(duration=a.duration, v0=doc["v0"], pose=pose, dynamics=preset_dynamics(doc))
     run = sim.make_rollout(model, cfg)
     for b in (int(x) for x in a.batches.split(",")):
         params = jnp.tile(jnp.asarray(base, jnp.float32), (b, 1))
