@@ -6,6 +6,11 @@ then runs ``jaxgait.train`` with the arguments given (experiments/running/README
 initiation is never entered").  Usage::
 
     ./jg python experiments/running/wang_fast/si_search.py wang_run_3p0 --set model=wang8_run_si ...
+
+``--widen NAME=LO,HI`` (repeatable, before the train arguments) also registers
+``wang8_run_siw``: ``wang8_run_si`` with those ranges widened (a range may only grow, so every
+``wang8_run_si`` vector is a ``wang8_run_siw`` vector); search it with ``--set
+model=wang8_run_siw``.
 """
 
 import dataclasses
@@ -22,18 +27,52 @@ from jaxgait.train.cli import main  # noqa: E402
 
 SI_RANGE = (0.35, 0.6)
 
-specs = tuple(
-    dataclasses.replace(
-        s, lower=SI_RANGE[0], upper=SI_RANGE[1], source=s.source + "; held within reach"
-    )
-    if s.name == "d_SI"
-    else s
-    for s in WANG_RUN_CONTROLLER.table.specs
-)
-ctrl = dataclasses.replace(
-    WANG_RUN_CONTROLLER, name="wang8_run_si", table=ParamTable("wang8_run_si", specs)
-)
-models.register(models.planar_spec(ctrl))
+
+def _held(specs, ranges, note):
+    out = []
+    for s in specs:
+        if s.name in ranges:
+            lo, hi = ranges[s.name]
+            s = dataclasses.replace(s, lower=lo, upper=hi, source=s.source + note)
+        out.append(s)
+    return tuple(out)
+
+
+def _register(name, specs):
+    ctrl = dataclasses.replace(WANG_RUN_CONTROLLER, name=name, table=ParamTable(name, specs))
+    models.register(models.planar_spec(ctrl))
+
+
+def _parse_widen(argv):
+    """Split ``--widen NAME=LO,HI`` options off ``argv``: (ranges, the rest)."""
+    ranges, rest, it = {}, [], iter(argv)
+    for a in it:
+        if a == "--widen":
+            try:
+                name, bounds = next(it).split("=")
+                lo, hi = (float(x) for x in bounds.split(","))
+            except (StopIteration, ValueError):
+                sys.exit("si_search.py: --widen takes NAME=LO,HI, e.g. --widen GL_HFL_sw=0,5")
+            ranges[name] = (lo, hi)
+        else:
+            rest.append(a)
+    return ranges, rest
+
+
+si_specs = _held(WANG_RUN_CONTROLLER.table.specs, {"d_SI": SI_RANGE}, "; held within reach")
+_register("wang8_run_si", si_specs)
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    widen, args = _parse_widen(sys.argv[1:])
+    if widen:
+        by_name = {s.name: s for s in si_specs}
+        for n, (lo, hi) in widen.items():
+            if n not in by_name:
+                sys.exit(f"si_search.py: --widen {n}: no such parameter in wang8_run_si")
+            if lo > by_name[n].lower or hi < by_name[n].upper:
+                sys.exit(
+                    f"si_search.py: --widen {n}={lo},{hi} narrows its range "
+                    f"[{by_name[n].lower}, {by_name[n].upper}]; a range may only grow"
+                )
+        _register("wang8_run_siw", _held(si_specs, widen, "; widened for speed"))
+    sys.exit(main(args))
