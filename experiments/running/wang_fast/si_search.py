@@ -10,7 +10,11 @@ initiation is never entered").  Usage::
 ``--widen NAME=LO,HI`` (repeatable, before the train arguments) also registers
 ``wang8_run_siw``: ``wang8_run_si`` with those ranges widened (a range may only grow, so every
 ``wang8_run_si`` vector is a ``wang8_run_siw`` vector); search it with ``--set
-model=wang8_run_siw``.
+model=wang8_run_siw``.  ``--evaluate`` (first) runs ``jaxgait.evaluate`` instead of the
+search, with the same models registered (a best of ``wang8_run_siw`` outside ``wang8_run``'s
+ranges)::
+
+    ./jg python .../si_search.py --evaluate --widen ... BEST.json --duration 60
 """
 
 import dataclasses
@@ -23,6 +27,7 @@ host_devices.use_cpu_cores()  # as `python -m jaxgait.train`: one XLA device per
 from jaxgait import models  # noqa: E402
 from jaxgait.control.wang import WANG_RUN_CONTROLLER  # noqa: E402
 from jaxgait.core.params import ParamTable  # noqa: E402
+from jaxgait.evaluate import main as evaluate_main  # noqa: E402
 from jaxgait.train.cli import main  # noqa: E402
 
 SI_RANGE = (0.35, 0.6)
@@ -63,7 +68,11 @@ si_specs = _held(WANG_RUN_CONTROLLER.table.specs, {"d_SI": SI_RANGE}, "; held wi
 _register("wang8_run_si", si_specs)
 
 if __name__ == "__main__":
-    widen, args = _parse_widen(sys.argv[1:])
+    argv = sys.argv[1:]
+    run = main
+    if argv[:1] == ["--evaluate"]:
+        run, argv = evaluate_main, argv[1:]
+    widen, args = _parse_widen(argv)
     if widen:
         by_name = {s.name: s for s in si_specs}
         for n, (lo, hi) in widen.items():
@@ -75,4 +84,4 @@ if __name__ == "__main__":
                     f"[{by_name[n].lower}, {by_name[n].upper}]; a range may only grow"
                 )
         _register("wang8_run_siw", _held(si_specs, widen, "; widened for speed"))
-    sys.exit(main(args))
+    sys.exit(run(args))
