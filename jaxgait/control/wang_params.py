@@ -225,7 +225,8 @@ WANG = ParamTable("wang8", STANCE_SPECS + SWING_SPECS + BALANCE_SPECS + INITIAL_
 
 #: Ranges of :data:`WANG_RUN`, widened where the searched runners sat at a bound of
 #: :data:`WANG` (``wang_run_2p5``: GF_SOL 2.94 of 3, th_hip0 1.17 of 1.2 rad, HL_HAM_sw 1.19
-#: of 1.2, init_dv 0.49 of 0.5 m/s, init_trunk -0.19 of -0.2 rad).
+#: of 1.2, init_dv 0.49 of 0.5 m/s, init_trunk -0.19 of -0.2 rad; the 3.7 m/s runner
+#: ``wang_run_3p7``: GL_HFL_sw 3.07 of 3).
 RUN_RANGES: dict[str, tuple[float, float]] = {
     "GF_SOL": (0.0, 5.0),  # Wang doubles Geyer's 1.2 for running; 5 leaves room above 2.4
     "GF_GAS": (0.0, 5.0),  # as GF_SOL (Geyer 1.1, doubled 2.2)
@@ -234,6 +235,7 @@ RUN_RANGES: dict[str, tuple[float, float]] = {
     "init_trunk": (-0.5, 0.2),
     "init_knee_sw": (-0.2, 1.5),  # a running swing knee bends to about 100 deg
     "init_dv": (-0.5, 1.5),
+    "GL_HFL_sw": (0.0, 5.0),  # the swing hip flexor's length gain of the faster runners
 }
 
 
