@@ -31,27 +31,42 @@ host_devices.use_cpu_cores()  # as `python -m jaxgait.train`: one XLA device per
 
 from jaxgait import models  # noqa: E402
 from jaxgait.control.wang import WANG_RUN_CONTROLLER  # noqa: E402
-from jaxgait.core.params import ParamTable  # noqa: E402
+from jaxgait.core.params import ParamTable, widened  # noqa: E402
 from jaxgait.evaluate import main as evaluate_main  # noqa: E402
 from jaxgait.muscles.tables import WANG8, with_headroom  # noqa: E402
 from jaxgait.train.cli import main  # noqa: E402
 
 SI_RANGE = (0.35, 0.6)
 
+#: ``wang8_run`` with d_SI held within reach (a narrower range, so not :func:`widened`).
+SI_TABLE = ParamTable(
+    "wang8_run_si",
+    tuple(
+        dataclasses.replace(
+            s, lower=SI_RANGE[0], upper=SI_RANGE[1], source=s.source + "; held within reach"
+        )
+        if s.name == "d_SI"
+        else s
+        for s in WANG_RUN_CONTROLLER.table.specs
+    ),
+)
 
-def _held(specs, ranges, note):
-    out = []
-    for s in specs:
-        if s.name in ranges:
-            lo, hi = ranges[s.name]
-            s = dataclasses.replace(s, lower=lo, upper=hi, source=s.source + note)
-        out.append(s)
-    return tuple(out)
+
+def _register(table, muscles=None):
+    ctrl = dataclasses.replace(WANG_RUN_CONTROLLER, name=table.name, table=table)
+    models.register(models.planar_spec(ctrl, muscles=muscles))
 
 
-def _register(name, specs, muscles=None):
-    ctrl = dataclasses.replace(WANG_RUN_CONTROLLER, name=name, table=ParamTable(name, specs))
-    models.register(models.planar_spec(ctrl, muscles=muscles), replace=True)
+def _pairs(option, value, n, example):
+    """(NAME, n floats) of ``option``'s ``NAME=X[,Y]``, or exit saying what it takes."""
+    try:
+        name, v = value.split("=")
+        xs = tuple(float(x) for x in v.split(","))
+        if len(xs) != n:
+            raise ValueError
+    except ValueError:
+        sys.exit(f"si_search.py: {option} takes {example}, got {value!r}")
+    return name, xs
 
 
 def _parse_options(argv):
@@ -60,27 +75,13 @@ def _parse_options(argv):
     ranges, factors, rest, it = {}, {}, [], iter(argv)
     for a in it:
         if a == "--widen":
-            try:
-                name, bounds = next(it).split("=")
-                lo, hi = (float(x) for x in bounds.split(","))
-            except (StopIteration, ValueError):
-                sys.exit("si_search.py: --widen takes NAME=LO,HI, e.g. --widen GL_HFL_sw=0,5")
-            ranges[name] = (lo, hi)
+            name, ranges[name] = _pairs(a, next(it, ""), 2, "NAME=LO,HI, e.g. GL_HFL_sw=0,5")
         elif a == "--headroom":
-            try:
-                name, f = next(it).split("=")
-                factors[name] = float(f)
-            except (StopIteration, ValueError):
-                sys.exit("si_search.py: --headroom takes MUSCLE=FACTOR, e.g. --headroom GLU=1.25")
-            if name not in WANG8.names or factors[name] < 1.0:
-                sys.exit(f"si_search.py: --headroom {name}: a muscle of {WANG8.names}, factor >= 1")
+            name, (factors[name],) = _pairs(a, next(it, ""), 1, "MUSCLE=FACTOR, e.g. GLU=1.25")
         else:
             rest.append(a)
     return ranges, factors, rest
 
-
-si_specs = _held(WANG_RUN_CONTROLLER.table.specs, {"d_SI": SI_RANGE}, "; held within reach")
-_register("wang8_run_si", si_specs)
 
 if __name__ == "__main__":
     argv = sys.argv[1:]
@@ -88,19 +89,11 @@ if __name__ == "__main__":
     if argv[:1] == ["--evaluate"]:
         run, argv = evaluate_main, argv[1:]
     widen, factors, args = _parse_options(argv)
-    muscles = None
-    if factors:
-        muscles = with_headroom(WANG8, factors, f"stimulation up to {factors}")
-        _register("wang8_run_si", si_specs, muscles)
-    if widen:
-        by_name = {s.name: s for s in si_specs}
-        for n, (lo, hi) in widen.items():
-            if n not in by_name:
-                sys.exit(f"si_search.py: --widen {n}: no such parameter in wang8_run_si")
-            if lo > by_name[n].lower or hi < by_name[n].upper:
-                sys.exit(
-                    f"si_search.py: --widen {n}={lo},{hi} narrows its range "
-                    f"[{by_name[n].lower}, {by_name[n].upper}]; a range may only grow"
-                )
-        _register("wang8_run_siw", _held(si_specs, widen, "; widened for speed"), muscles)
+    try:
+        muscles = with_headroom(WANG8, factors, f"stimulation up to {factors}") if factors else None
+        _register(SI_TABLE, muscles)
+        if widen:
+            _register(widened(SI_TABLE, "wang8_run_siw", widen, "; widened for speed"), muscles)
+    except ValueError as e:  # an unknown name, a range that narrows, a factor below 1
+        sys.exit(f"si_search.py: {e}")
     sys.exit(run(args))
