@@ -7,8 +7,10 @@ after ``--skip`` seconds are those of its filtered ground contact (the controlle
 Per stance: the largest force at the physics step and when it comes after touchdown, the width
 of that peak (time above half of it), and the largest force after a zero-phase 4th-order
 Butterworth low-pass at ``--cutoff`` Hz (scipy.signal; 50 Hz by default, a common cut-off for
-running force plates), all in body weights (BW). ``--out`` writes the rows as JSON
-(experiments/running/README.md, "The stance peaks are a foot slap").  Usage::
+running force plates), all in body weights (BW); and from the heights of the foot's heel and
+ball, which of them lands first and when and how fast the other one reaches the ground.
+``--out`` writes the rows as JSON (experiments/running/README.md, "The stance peaks are a foot
+slap").  Usage::
 
     ./jg python experiments/running/landing/grf_slap.py wang_run_3p7 fblplus_run_2p0 \
         --duration 6 --out experiments/running/landing/grf_slap.json
@@ -19,6 +21,8 @@ from __future__ import annotations
 import argparse
 import json
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 from scipy import signal
 
@@ -41,11 +45,18 @@ def stances(stance: np.ndarray, dt: float, skip_s: float) -> list[tuple[int, int
 
 
 def stance_rows(
-    fz: np.ndarray, stance: np.ndarray, dt: float, skip_s: float, cutoff_hz: float
+    fz: np.ndarray,
+    stance: np.ndarray,
+    heel_ball_z: np.ndarray,
+    dt: float,
+    skip_s: float,
+    cutoff_hz: float,
 ) -> list[dict]:
     """Per stance of one leg (``stance`` (T,) bool) of ``fz`` (T,) [BW] at step ``dt`` [s]:
     raw and filtered peaks, the raw peak's delay after touchdown and its width (time above
-    half of it) [ms], stance time [ms]."""
+    half of it) [ms], stance time [ms]; from the heights of the foot's heel and ball
+    ``heel_ball_z`` (T, 2) [m]: which of them touched down first, when the other one reached
+    the ground [ms after touchdown] and how fast it was falling then [m/s]."""
     b, a = signal.butter(4, cutoff_hz / (0.5 / dt))
     filt = signal.filtfilt(b, a, fz)
     rows = []
@@ -58,9 +69,17 @@ def stance_rows(
             lo -= 1
         while hi < seg.size - 1 and half[hi + 1]:
             hi += 1
+        z = heel_ball_z[s:e]
+        first = int(z[0].argmin())  # 0 heel, 1 ball
+        down = np.flatnonzero(z[:, 1 - first] <= 0.0)
+        j = int(down[0]) if down.size else seg.size - 1
+        fall = (z[j - 1, 1 - first] - z[j, 1 - first]) / dt if j > 0 else 0.0
         rows.append(
             {
                 "touchdown_s": round(s * dt, 4),
+                "first_point": ("heel", "ball")[first],
+                "second_point_down_ms": round(j * dt * 1e3, 1),
+                "second_point_speed_mps": round(float(fall), 2),
                 "stance_ms": round((e - s) * dt * 1e3, 1),
                 "peak_bw": round(float(seg[k]), 3),
                 "peak_after_touchdown_ms": round(k * dt * 1e3, 1),
@@ -89,13 +108,21 @@ def main(argv=None) -> None:
         r = evaluation.run(name, duration=a.duration, log_dt=a.log_dt, reference="running")
         dt = float(r.cfg.log_dt)
         fz = np.asarray(r.trace.grf)[:, 0, 1] / (r.report["mass_kg"] * 9.81)
-        rows = stance_rows(fz, np.asarray(r.trace.stance)[:, 0], dt, a.skip, a.cutoff)
+        q = jnp.asarray(np.asarray(r.trace.qpos))
+        pts = np.asarray(jax.vmap(lambda x, m=r.model: m.points(x, 0.0))(q))  # (T, 9, 2)
+        heel_ball_z = pts[:, :2, 1]  # the right foot's heel and ball
+        rows = stance_rows(fz, np.asarray(r.trace.stance)[:, 0], heel_ball_z, dt, a.skip, a.cutoff)
         if not rows:
             raise SystemExit(f"{name}: no complete right stance after {a.skip} s")
-        mean = {k: round(float(np.mean([w[k] for w in rows])), 3) for k in rows[0]}
+        mean = {
+            k: round(float(np.mean([w[k] for w in rows])), 3) for k in rows[0] if k != "first_point"
+        }
+        firsts = sorted({w["first_point"] for w in rows})
         out[name] = {"fell": bool(r.report["fell"]), "mean": mean, "stances": rows}
         print(
-            f"{name}: {len(rows)} stances; peak {mean['peak_bw']:.2f} BW at "
+            f"{name}: {len(rows)} stances, landing on the {'/'.join(firsts)}; the other point "
+            f"down {mean['second_point_down_ms']:.1f} ms later at "
+            f"{mean['second_point_speed_mps']:.2f} m/s; peak {mean['peak_bw']:.2f} BW at "
             f"{mean['peak_after_touchdown_ms']:.1f} ms after touchdown, "
             f"{mean['peak_width_ms']:.1f} ms wide; low-passed at {a.cutoff:g} Hz: "
             f"{mean['filtered_peak_bw']:.2f} BW; stance {mean['stance_ms']:.0f} ms"
