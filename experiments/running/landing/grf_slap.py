@@ -115,7 +115,9 @@ def main(argv=None) -> None:
         if not rows:
             raise SystemExit(f"{name}: no complete right stance after {a.skip} s")
         mean = {
-            k: round(float(np.mean([w[k] for w in rows])), 3) for k in rows[0] if k != "first_point"
+            k: round(float(np.mean([w[k] for w in rows])), 3)
+            for k in rows[0]
+            if k not in ("first_point", "touchdown_s")
         }
         firsts = sorted({w["first_point"] for w in rows})
         out[name] = {"fell": bool(r.report["fell"]), "mean": mean, "stances": rows}
