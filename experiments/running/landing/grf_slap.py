@@ -22,11 +22,15 @@ import argparse
 import json
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from scipy import signal
 
 from jaxgait import evaluation
+from jaxgait.analysis.measures import G
+from jaxgait.sim.model import CONTACT_SITES
+
+#: columns of Model.points (and CONTACT_SITES) with the right foot's heel and ball
+RIGHT_FOOT = [CONTACT_SITES.index("heel_r"), CONTACT_SITES.index("ball_r")]
 
 
 def stances(stance: np.ndarray, dt: float, skip_s: float) -> list[tuple[int, int]]:
@@ -107,10 +111,9 @@ def main(argv=None) -> None:
     for name in a.presets:
         r = evaluation.run(name, duration=a.duration, log_dt=a.log_dt, reference="running")
         dt = float(r.cfg.log_dt)
-        fz = np.asarray(r.trace.grf)[:, 0, 1] / (r.report["mass_kg"] * 9.81)
-        q = jnp.asarray(np.asarray(r.trace.qpos))
-        pts = np.asarray(jax.vmap(lambda x, m=r.model: m.points(x, 0.0))(q))  # (T, 9, 2)
-        heel_ball_z = pts[:, :2, 1]  # the right foot's heel and ball
+        fz = np.asarray(r.trace.grf)[:, 0, 1] / (r.report["mass_kg"] * G)
+        pts = jax.vmap(r.model.points, in_axes=(0, None))(r.trace.qpos, 0.0)  # (T, 9, 2)
+        heel_ball_z = np.asarray(pts)[:, RIGHT_FOOT, 1]
         rows = stance_rows(fz, np.asarray(r.trace.stance)[:, 0], heel_ball_z, dt, a.skip, a.cutoff)
         if not rows:
             raise SystemExit(f"{name}: no complete right stance after {a.skip} s")
