@@ -40,7 +40,7 @@ from jaxgait.control.gh2010 import GH2010_CONTROLLER
 from jaxgait.control.interface import Controller
 from jaxgait.control.speed_lean import speed_regulated
 from jaxgait.control.spinal import FBL_NET, FBLPLUS_NET, spinal_controller
-from jaxgait.control.wang import WANG_CONTROLLER, WANG_RUN_CONTROLLER
+from jaxgait.control.wang import WANG_CONTROLLER, WANG_RUN_CONTROLLER, WANG_RUN_LD_CONTROLLER
 from jaxgait.core.params import ParamTable, widened
 from jaxgait.muscles.tables import GEYER7, MuscleTable, with_headroom
 from jaxgait.sim.model import planar_model
@@ -144,6 +144,7 @@ register(
 )
 register(planar_spec(WANG_CONTROLLER))
 register(planar_spec(WANG_RUN_CONTROLLER))
+register(planar_spec(WANG_RUN_LD_CONTROLLER))
 register(planar_spec(FBL_ANKLE_CONTROLLER))
 register(planar_spec(FBLPLUS_BAL_CONTROLLER))
 register(planar_spec(FBLPLUS_BAL_RUN_CONTROLLER))

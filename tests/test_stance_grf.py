@@ -155,12 +155,14 @@ def test_human_likeness_of_winter_itself_and_of_a_shifted_copy():
         assert float(out["winter"][f"rom_{j}_diff_deg"]) == pytest.approx(0.0, abs=1e-4)
     m = {
         "grf_peak_max_bw": jnp.asarray(1.8),
+        "grf_peak_mean_bw": jnp.asarray(1.5),
         "rom_knee_diff_deg": jnp.asarray(-5.0),
         "rom_ankle_diff_deg": jnp.asarray(15.0),
         "grf_corr": out["shifted"]["grf_corr"],
         "grf_loading_rate_max_bw_s": jnp.asarray(2100.0),
     }
     assert float(criterion_value("grf_peak", m, {})) == pytest.approx(-0.5)
+    assert float(criterion_value("grf_peak_mean", m, {})) == pytest.approx(-0.2)
     assert float(criterion_value("grf_loading_rate", m, {})) == pytest.approx(-2.0)
     m["grf_loading_rate_max_bw_s"] = jnp.asarray(80.0)  # a heel landing: no penalty
     assert float(criterion_value("grf_loading_rate", m, {})) == 0.0

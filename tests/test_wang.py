@@ -19,6 +19,7 @@ from jaxgait.control.wang_params import (
     SWING_SPECS,
     WANG,
     WANG_RUN,
+    WANG_RUN_LD,
 )
 from jaxgait.core.params import widened
 from jaxgait.muscles import effort as ef
@@ -403,6 +404,66 @@ def test_running_model_is_the_same_step_with_another_box():
     WANG_RUN.check(v)
     with pytest.raises(ValueError, match="GF_SOL=4 not in"):
         WANG.check(v)
+
+
+# ------------------------------------------------------------------ the landing brake
+def test_landing_brake_by_hand():
+    """TA gets s_pre in late swing (SWING or SP with d < d_pre), s_ld in the first t_ld of
+    stance (STANCE or SI), nothing else; t_ld = 0 gives no stance term at all."""
+    phase = jnp.asarray([w.SWING, w.SP, w.SWING, w.STANCE, w.SI, w.STANCE, w.STANCE])
+    dleg = jnp.asarray([-0.4, -0.5, -0.1, 0.0, 0.0, 0.0, 0.3])
+    t = jnp.asarray([0.0, 0.0, 0.0, 0.01, 0.02, 0.03, 0.0005])
+    out = w.landing_brake(0.2, -0.3, 0.5, 0.025, phase, dleg, t)
+    np.testing.assert_allclose(np.asarray(out), [0.2, 0.2, 0.0, 0.5, 0.5, 0.0, 0.5])
+    none = w.landing_brake(0.2, -0.3, 0.5, 0.0, phase, dleg, t)
+    np.testing.assert_allclose(np.asarray(none), [0.2, 0.2, 0.0, 0.0, 0.0, 0.0, 0.0])
+
+
+def test_landing_brake_counts_stance_time_from_the_delayed_contact():
+    """The stance timer starts when the state machine sees the touchdown (10 ms late) and
+    the brake's TA excitation lasts T_ld from then; off (s = 0) the TA is wang8_run's."""
+    ctrl, dt = w.WANG_RUN_LD_CONTROLLER, 0.0005
+    cmd = {"lean_offset": jnp.zeros(()), "hip_target_offset": jnp.zeros(())}
+    p_ld = {k: float(v) for k, v in WANG_RUN_LD.unpack(np.asarray(WANG_RUN_LD.init)).items()}
+    on = {
+        k: jnp.asarray(v, jnp.float32) for k, v in {**p_ld, "s_TA_ld": 0.4, "T_ld": 0.0052}.items()
+    }
+    off = {k: jnp.asarray(v, jnp.float32) for k, v in p_ld.items()}
+    runs = {}
+    for name, p in (("on", on), ("off", off)):
+        step = jax.jit(lambda st, sens, p=p: ctrl.step(ctrl, p, sens, st, cmd, dt))
+        st = ctrl.init(ctrl, _sensors(stance=(0.0, 1.0)), dt)
+        ta, ts = [], []
+        for _ in range(50):  # the right leg lands at step 0
+            stim, st = step(st, _sensors(stance=(1.0, 1.0), ds=(0.0, 1.0)))
+            ta.append(float(stim[0, TA]))
+            ts.append(int(st.n_stance[0]))
+        runs[name] = np.asarray(ta), np.asarray(ts)
+    ta_on, ts = runs["on"]
+    ta_off, _ = runs["off"]
+    assert ts[19] == 0 and ts[20] == 1 and ts[29] == 10
+    diff = ta_on - ta_off
+    # seen at step 20 (10 ms), held while the time in stance <= 5.2 ms: steps 20-29
+    np.testing.assert_allclose(diff[20:30], 0.4, atol=1e-6)
+    assert np.abs(diff[:20]).max() < 1e-7 and np.abs(diff[31:]).max() < 1e-7
+
+
+def test_landing_brake_off_moves_as_wang8_run():
+    """A wang8_run vector on wang8_run_ld (the brake's parameters at their init, s = 0)
+    rolls out bit for bit as on wang8_run; switched on, the TA is excited harder."""
+    assert WANG_RUN_LD.names[: WANG_RUN.size] == WANG_RUN.names
+    assert WANG_RUN_LD.names[WANG_RUN.size :] == ("s_TA_pre", "d_TA_pre", "s_TA_ld", "T_ld")
+    cfg = sim.SimConfig(duration=0.4, log_dt=0.01)
+    env = envs.make_env("flat", jax.random.PRNGKey(0))
+    v = np.asarray(WANG_RUN.init, float)
+    a = sim.rollout(models.get_model("wang8_run"), cfg, jnp.asarray(v, jnp.float32), env)[0]
+    ld = models.get_model("wang8_run_ld")
+    v_ld = WANG_RUN_LD.pack(WANG_RUN.unpack(v))
+    b = sim.rollout(ld, cfg, jnp.asarray(v_ld, jnp.float32), env)[0]
+    np.testing.assert_array_equal(np.asarray(b.qpos), np.asarray(a.qpos))
+    on = WANG_RUN_LD.pack({"s_TA_ld": 0.5, "T_ld": 0.05, "s_TA_pre": 0.3}, base=v_ld)
+    c = sim.rollout(ld, cfg, jnp.asarray(on, jnp.float32), env)[0]
+    assert float(np.asarray(c.stim)[..., 0, TA].sum()) > float(np.asarray(a.stim)[..., 0, TA].sum())
 
 
 def test_wang8_model_rolls_out_with_eight_muscles():

@@ -61,7 +61,7 @@ from flax import struct
 from jaxgait.control.commands import Command
 from jaxgait.control.delay import DelayLine, delay_init, delay_taps, steps_for
 from jaxgait.control.interface import Controller, Sensors, com_over_other_ankle
-from jaxgait.control.wang_params import INITIAL_ANGLE_NAMES, WANG, WANG_RUN
+from jaxgait.control.wang_params import INITIAL_ANGLE_NAMES, WANG, WANG_RUN, WANG_RUN_LD
 from jaxgait.muscles.mtu import MUSCLES8, WANG8
 
 HFL, GLU, HAM, VAS, GAS, SOL, TA, RF = range(8)
@@ -229,23 +229,42 @@ def wang_excitation(p: dict, s: jax.Array, phase: jax.Array, lead: jax.Array) ->
     return jnp.where(in_stance[:, None], st, sw)
 
 
+def landing_brake(s_pre, d_pre, s_ld, t_ld, phase, dleg, t_stance):
+    """TA excitation [-] of the landing brake (not Wang's), per leg: s_pre in swing (SWING or
+    SP) once dleg = (x_CoM - x_ankle) / leg length < d_pre (the foot ahead of the CoM), s_ld
+    while in stance (STANCE or SI) for at most t_ld [s] (t_stance [s]: the time since the
+    leg's state became stance, counted from its first step, so ``t_ld`` = 0 gives none), else
+    0.  A feedforward: the runners' forefoot comes down 20-26 ms after heel strike, as soon
+    as TA's 20 ms length feedback (section 4.2) can act."""
+    in_stance = (phase == STANCE) | (phase == SI)
+    late_swing = ~in_stance & (dleg < d_pre)
+    early = in_stance & (t_stance <= t_ld) & (t_ld > 0.0)
+    return jnp.where(late_swing, s_pre, 0.0) + jnp.where(early, s_ld, 0.0)
+
+
 # ------------------------------------------------------------------------- controller
 @dataclass(frozen=True)
 class WangSettings:
     """Static data: neural delays [s] of the (hip, knee, ankle) muscle groups and of ground
-    contact (section 4.1), and the frame of the stance-preparation hip angle."""
+    contact (section 4.1), the frame of the stance-preparation hip angle, and whether the
+    landing brake (:func:`landing_brake`; parameters s_TA_pre, d_TA_pre, s_TA_ld, T_ld)
+    acts."""
 
     delays: tuple = (0.005, 0.010, 0.020)
     contact_delay: float = 0.010
     global_hip: bool = True
+    landing_brake: bool = False
 
 
 @struct.dataclass
 class WangState:
-    """Controller state: the sensor delay line and the leg states (2,) int32 (Fig. 4)."""
+    """Controller state: the sensor delay line, the leg states (2,) int32 (Fig. 4) and the
+    number of steps (2,) int32 each leg has been in stance (STANCE or SI; 0 otherwise), which
+    only the landing brake reads."""
 
     lines: DelayLine
     phase: jax.Array
+    n_stance: jax.Array
 
 
 def packed_sensors(sens: Sensors, global_hip: bool = True) -> jax.Array:
@@ -281,7 +300,8 @@ def wang_init(ctrl: Controller, sens: Sensors, dt: float) -> WangState:
     """Delay line filled with the start sensors; stance legs in STANCE, the others in SWING."""
     x = packed_sensors(sens, ctrl.settings.global_hip)
     lines = delay_init(max(_taps(ctrl.settings, dt)), x)
-    return WangState(lines=lines, phase=jnp.where(sens.stance, STANCE, SWING).astype(jnp.int32))
+    phase = jnp.where(sens.stance, STANCE, SWING).astype(jnp.int32)
+    return WangState(lines=lines, phase=phase, n_stance=jnp.zeros((2,), jnp.int32))
 
 
 def with_commands(p: dict, command: dict) -> dict:
@@ -311,7 +331,16 @@ def wang_step(ctrl: Controller, p: dict, sens: Sensors, state: WangState, comman
         p, g.reshape(n * 2, N_SENSORS), jnp.tile(phase, n), jnp.tile(lead, n)
     ).reshape(n, 2, N_MUSCLES)
     pick = jnp.asarray(MUSCLE_DELAY_GROUP)[None, None, :].repeat(2, 1)
-    return jnp.take_along_axis(stim, pick, axis=0)[0], WangState(lines=lines, phase=phase)
+    stim = jnp.take_along_axis(stim, pick, axis=0)[0]
+    in_stance = (phase == STANCE) | (phase == SI)
+    n_stance = jnp.where(in_stance, state.n_stance + 1, 0)
+    if ctrl.settings.landing_brake:
+        t_stance = n_stance * dt
+        brake = landing_brake(
+            p["s_TA_pre"], p["d_TA_pre"], p["s_TA_ld"], p["T_ld"], phase, c[:, W_DLEG], t_stance
+        )
+        stim = stim.at[:, TA].add(brake)
+    return stim, WangState(lines=lines, phase=phase, n_stance=n_stance)
 
 
 def wang_initial_offsets(ctrl: Controller, p: dict):
@@ -346,4 +375,16 @@ WANG_RUN_CONTROLLER = dataclasses.replace(
     table=WANG_RUN,
     description="wang8 with the running searches' wider ranges (GAS/SOL gains, hip target, "
     "start state)",
+)
+
+#: :data:`WANG_RUN_CONTROLLER` with the landing brake (:func:`landing_brake`) and its four
+#: parameters appended to the table (:data:`~jaxgait.control.wang_params.WANG_RUN_LD`); with
+#: them 0 it moves as ``wang8_run``.
+WANG_RUN_LD_CONTROLLER = dataclasses.replace(
+    WANG_RUN_CONTROLLER,
+    name="wang8_run_ld",
+    table=WANG_RUN_LD,
+    settings=dataclasses.replace(WANG_RUN_CONTROLLER.settings, landing_brake=True),
+    description="wang8_run with a landing brake: TA excitation in late swing and just after "
+    "touchdown",
 )

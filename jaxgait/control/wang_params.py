@@ -243,3 +243,38 @@ RUN_RANGES: dict[str, tuple[float, float]] = {
 #: ``wang8_run``); the same names in the same order, so a ``wang8`` vector is a ``wang8_run``
 #: vector.
 WANG_RUN = widened(WANG, "wang8_run", RUN_RANGES, "; range widened for running (wang8_run)")
+
+
+#: A landing brake (not Wang's; :data:`WANG_RUN_LD`, model ``wang8_run_ld``): TA excitation
+#: added as a feedforward in late swing (once the foot is ahead of the CoM by -d_TA_pre leg
+#: lengths) and for the first T_ld of stance, so that the dorsiflexor is active when the foot's
+#: second point comes down.  Wang's stance TA law is a length feedback delayed 20 ms, the state
+#: machine sees contact 10 ms late, and the runners' forefoot slaps down 20-26 ms after heel
+#: strike (experiments/running/landing), so neither a feedback of the ankle nor an excitation
+#: begun at (sensed) touchdown is active in time; stance preparation (d < d_SP) is not entered
+#: by the runners.  s_TA_pre = s_TA_ld = 0 = off: a ``wang8_run`` vector moves alike on
+#: ``wang8_run_ld``.
+LANDING_SPECS: tuple[ParamSpec, ...] = (
+    ParamSpec("s_TA_pre", 0.0, 0.0, 1.0, "TA excitation added in late swing (landing brake)", "-"),
+    ParamSpec(
+        "d_TA_pre",
+        -0.3,
+        -1.0,
+        0.5,
+        "late swing for s_TA_pre: (x_CoM - x_ankle)/leg < d_TA_pre; chosen: the foot 0.3 leg "
+        "lengths ahead of the CoM",
+        "leg lengths",
+    ),
+    ParamSpec(
+        "s_TA_ld",
+        0.0,
+        0.0,
+        1.0,
+        "TA excitation added in the first T_ld of stance (landing brake)",
+        "-",
+    ),
+    ParamSpec("T_ld", 0.0, 0.0, 0.1, "duration of the stance TA excitation s_TA_ld", "s"),
+)
+
+#: :data:`WANG_RUN` and the landing brake's four parameters (:data:`LANDING_SPECS`), last.
+WANG_RUN_LD = ParamTable("wang8_run_ld", WANG_RUN.specs + LANDING_SPECS)

@@ -53,7 +53,8 @@ fall, so a search from a falling start is not pulled towards v* before it walks)
 fall (-1 if it fell), ``flight`` = its flight fraction (0 if it fell) and ``flight_time`` =
 flight fraction x duration [s] (fallen or not), for running; the human-likeness criteria
 ``grf_corr`` (the vertical GRF's correlation with Winter's over the last cycle), ``grf_peak``
-(-(per-stance peak above :data:`GRF_PEAK_BOUND_BW`) in BW), ``grf_loading_rate``
+(-(largest per-stance peak above :data:`GRF_PEAK_BOUND_BW`) in BW; ``grf_peak_mean``
+the same of the mean per-stance peak), ``grf_loading_rate``
 (-(largest one-step loading rate above :data:`GRF_RATE_BOUND_BW_S`) per 1000 BW/s),
 ``corr_hip``, ``corr_knee``, ``corr_ankle`` (each joint's correlation; ``angles`` is their
 minimum; ``mean_cycle_corr_*`` the same of the mean of the last cycles), ``corr_floor``
@@ -134,6 +135,13 @@ def _grf_peak(m: Measures) -> jax.Array:
     return -jnp.maximum(m["grf_peak_max_bw"] - GRF_PEAK_BOUND_BW, 0.0)
 
 
+def _grf_peak_mean(m: Measures) -> jax.Array:
+    """-(mean of the per-stance vertical-GRF peaks above :data:`GRF_PEAK_BOUND_BW`) [BW]: as
+    ``grf_peak`` for every stance rather than the worst one (a runner's landings differ by
+    a few BW from stance to stance, so the largest one is a noisy criterion)."""
+    return -jnp.maximum(m["grf_peak_mean_bw"] - GRF_PEAK_BOUND_BW, 0.0)
+
+
 #: Bound [BW/s] above which the largest one-step loading rate of the vertical GRF is penalised
 #: (``grf_loading_rate``): a forefoot landing after the heel raises the GRF by most of a body
 #: weight within one 0.5 ms step (about 2,000 BW/s) while the peak stays low; a heel landing
@@ -199,6 +207,7 @@ EXTRA_CRITERIA = {
     "flight_time": _flight_time,
     "grf_corr": lambda m: m["grf_corr"],
     "grf_peak": _grf_peak,
+    "grf_peak_mean": _grf_peak_mean,
     "grf_loading_rate": _grf_loading_rate,
     "corr_hip": lambda m: m["corr_hip"],
     "corr_knee": lambda m: m["corr_knee"],
@@ -248,6 +257,7 @@ CRITERION_SCALE = {
     "flight_time": 1.0,
     "grf_corr": 0.1,
     "grf_peak": 0.5,
+    "grf_peak_mean": 0.5,
     "grf_loading_rate": 0.5,
     "corr_hip": 0.1,
     "corr_knee": 0.1,

@@ -20,6 +20,10 @@ ranges)::
 muscles' stimulation allowed up to FACTOR (:func:`jaxgait.muscles.tables.with_headroom`, a
 capacity study as ``fblplus_bal_run_sr_hr125``; the same vector moves alike while no muscle is
 asked for more than 1).
+
+``--landing`` (before the train arguments) builds both models on ``wang8_run_ld`` (the running
+table with the landing brake's three parameters, :func:`jaxgait.control.wang.landing_brake`)
+instead of ``wang8_run``.
 """
 
 import dataclasses
@@ -30,7 +34,7 @@ from jaxgait.core import host_devices
 host_devices.use_cpu_cores()  # as `python -m jaxgait.train`: one XLA device per core
 
 from jaxgait import models  # noqa: E402
-from jaxgait.control.wang import WANG_RUN_CONTROLLER  # noqa: E402
+from jaxgait.control.wang import WANG_RUN_CONTROLLER, WANG_RUN_LD_CONTROLLER  # noqa: E402
 from jaxgait.core.params import ParamTable, widened  # noqa: E402
 from jaxgait.evaluate import main as evaluate_main  # noqa: E402
 from jaxgait.muscles.tables import WANG8, with_headroom  # noqa: E402
@@ -38,22 +42,29 @@ from jaxgait.train.cli import main  # noqa: E402
 
 SI_RANGE = (0.35, 0.6)
 
-#: ``wang8_run`` with d_SI held within reach (a narrower range, so not :func:`widened`).
-SI_TABLE = ParamTable(
-    "wang8_run_si",
-    tuple(
-        dataclasses.replace(
-            s, lower=SI_RANGE[0], upper=SI_RANGE[1], source=s.source + "; held within reach"
-        )
-        if s.name == "d_SI"
-        else s
-        for s in WANG_RUN_CONTROLLER.table.specs
-    ),
-)
+
+def si_table(base=WANG_RUN_CONTROLLER) -> ParamTable:
+    """``base``'s table (``wang8_run``) with d_SI held within reach (a narrower range, so not
+    :func:`widened`)."""
+    return ParamTable(
+        "wang8_run_si",
+        tuple(
+            dataclasses.replace(
+                s, lower=SI_RANGE[0], upper=SI_RANGE[1], source=s.source + "; held within reach"
+            )
+            if s.name == "d_SI"
+            else s
+            for s in base.table.specs
+        ),
+    )
 
 
-def _register(table, muscles=None):
-    ctrl = dataclasses.replace(WANG_RUN_CONTROLLER, name=table.name, table=table)
+#: ``wang8_run`` with d_SI held within reach.
+SI_TABLE = si_table()
+
+
+def _register(table, muscles=None, base=WANG_RUN_CONTROLLER):
+    ctrl = dataclasses.replace(base, name=table.name, table=table)
     models.register(models.planar_spec(ctrl, muscles=muscles))
 
 
@@ -88,12 +99,18 @@ if __name__ == "__main__":
     run = main
     if argv[:1] == ["--evaluate"]:
         run, argv = evaluate_main, argv[1:]
+    base = WANG_RUN_CONTROLLER
+    if "--landing" in argv:
+        base = WANG_RUN_LD_CONTROLLER
+        argv = [a for a in argv if a != "--landing"]
     widen, factors, args = _parse_options(argv)
     try:
         muscles = with_headroom(WANG8, factors, f"stimulation up to {factors}") if factors else None
-        _register(SI_TABLE, muscles)
+        table = si_table(base)
+        _register(table, muscles, base)
         if widen:
-            _register(widened(SI_TABLE, "wang8_run_siw", widen, "; widened for speed"), muscles)
+            siw = widened(table, "wang8_run_siw", widen, "; widened for speed")
+            _register(siw, muscles, base)
     except ValueError as e:  # an unknown name, a range that narrows, a factor below 1
         sys.exit(f"si_search.py: {e}")
     sys.exit(run(args))
