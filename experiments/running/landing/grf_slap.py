@@ -94,6 +94,38 @@ def stance_rows(
     return rows
 
 
+def slap(r: evaluation.EvalRun, skip_s: float, cutoff_hz: float) -> dict:
+    """``{"fell", "mean", "stances"}`` of one rollout ``r`` (logged at the physics step): the
+    right leg's rows of :func:`stance_rows` after ``skip_s`` and their means (empty if none)."""
+    dt = float(r.cfg.log_dt)
+    fz = np.asarray(r.trace.grf)[:, 0, 1] / (r.report["mass_kg"] * G)
+    pts = jax.vmap(r.model.points, in_axes=(0, None))(r.trace.qpos, 0.0)  # (T, 9, 2)
+    heel_ball_z = np.asarray(pts)[:, RIGHT_FOOT, 1]
+    rows = stance_rows(fz, np.asarray(r.trace.stance)[:, 0], heel_ball_z, dt, skip_s, cutoff_hz)
+    mean = {
+        k: round(float(np.mean([w[k] for w in rows])), 3)
+        for k in (rows[0] if rows else ())
+        if k not in ("first_point", "touchdown_s")
+    }
+    return {"fell": bool(r.report["fell"]), "mean": mean, "stances": rows}
+
+
+def describe(res: dict, cutoff_hz: float) -> str:
+    """One line of :func:`slap`'s result."""
+    rows, mean = res["stances"], res["mean"]
+    if not rows:
+        return "no complete right stance"
+    firsts = sorted({w["first_point"] for w in rows})
+    return (
+        f"{len(rows)} stances, landing on the {'/'.join(firsts)}; the other point "
+        f"down {mean['second_point_down_ms']:.1f} ms later at "
+        f"{mean['second_point_speed_mps']:.2f} m/s; peak {mean['peak_bw']:.2f} BW at "
+        f"{mean['peak_after_touchdown_ms']:.1f} ms after touchdown, "
+        f"{mean['peak_width_ms']:.1f} ms wide; low-passed at {cutoff_hz:g} Hz: "
+        f"{mean['filtered_peak_bw']:.2f} BW; stance {mean['stance_ms']:.0f} ms"
+    )
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("presets", nargs="+")
@@ -110,28 +142,10 @@ def main(argv=None) -> None:
     out = {}
     for name in a.presets:
         r = evaluation.run(name, duration=a.duration, log_dt=a.log_dt, reference="running")
-        dt = float(r.cfg.log_dt)
-        fz = np.asarray(r.trace.grf)[:, 0, 1] / (r.report["mass_kg"] * G)
-        pts = jax.vmap(r.model.points, in_axes=(0, None))(r.trace.qpos, 0.0)  # (T, 9, 2)
-        heel_ball_z = np.asarray(pts)[:, RIGHT_FOOT, 1]
-        rows = stance_rows(fz, np.asarray(r.trace.stance)[:, 0], heel_ball_z, dt, a.skip, a.cutoff)
-        if not rows:
+        out[name] = slap(r, a.skip, a.cutoff)
+        if not out[name]["stances"]:
             raise SystemExit(f"{name}: no complete right stance after {a.skip} s")
-        mean = {
-            k: round(float(np.mean([w[k] for w in rows])), 3)
-            for k in rows[0]
-            if k not in ("first_point", "touchdown_s")
-        }
-        firsts = sorted({w["first_point"] for w in rows})
-        out[name] = {"fell": bool(r.report["fell"]), "mean": mean, "stances": rows}
-        print(
-            f"{name}: {len(rows)} stances, landing on the {'/'.join(firsts)}; the other point "
-            f"down {mean['second_point_down_ms']:.1f} ms later at "
-            f"{mean['second_point_speed_mps']:.2f} m/s; peak {mean['peak_bw']:.2f} BW at "
-            f"{mean['peak_after_touchdown_ms']:.1f} ms after touchdown, "
-            f"{mean['peak_width_ms']:.1f} ms wide; low-passed at {a.cutoff:g} Hz: "
-            f"{mean['filtered_peak_bw']:.2f} BW; stance {mean['stance_ms']:.0f} ms"
-        )
+        print(f"{name}: {describe(out[name], a.cutoff)}")
     if a.out:
         with open(a.out, "w") as f:
             json.dump({"cutoff_hz": a.cutoff, "skip_s": a.skip, "presets": out}, f, indent=1)
