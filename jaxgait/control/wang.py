@@ -46,6 +46,9 @@ HAM and RF), else one spanning the ankle 20 ms (GAS, SOL, TA), else 10 ms (VAS)
 lead leg, see 10 ms delayed sensors (so does d in the thresholds).  RF's laws are constants of
 the state, so its own delay changes nothing.  Excitations are clipped to [0.01, 1] by the
 muscle model.
+
+Not Wang's: ``wang8_run_ld`` (:data:`WANG_RUN_LD_CONTROLLER`) adds a landing brake, two
+feedforward TA excitations in late swing and just after touchdown (:func:`landing_brake`).
 """
 
 from __future__ import annotations

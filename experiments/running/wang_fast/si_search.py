@@ -22,7 +22,7 @@ capacity study as ``fblplus_bal_run_sr_hr125``; the same vector moves alike whil
 asked for more than 1).
 
 ``--landing`` (before the train arguments) builds both models on ``wang8_run_ld`` (the running
-table with the landing brake's three parameters, :func:`jaxgait.control.wang.landing_brake`)
+table with the landing brake's four parameters, :func:`jaxgait.control.wang.landing_brake`)
 instead of ``wang8_run``.
 """
 
