@@ -337,7 +337,7 @@ def wang_step(ctrl: Controller, p: dict, sens: Sensors, state: WangState, comman
     stim = jnp.take_along_axis(stim, pick, axis=0)[0]
     in_stance = (phase == STANCE) | (phase == SI)
     n_stance = jnp.where(in_stance, state.n_stance + 1, 0)
-    if ctrl.settings.landing_brake:
+    if ctrl.settings.landing_brake:  # d and the states as the state machine sees them (10 ms)
         t_stance = n_stance * dt
         brake = landing_brake(
             p["s_TA_pre"], p["d_TA_pre"], p["s_TA_ld"], p["T_ld"], phase, c[:, W_DLEG], t_stance
