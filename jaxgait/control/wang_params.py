@@ -234,7 +234,7 @@ RUN_RANGES: dict[str, tuple[float, float]] = {
     "th_hip0": (-0.2, 1.6),
     "init_trunk": (-0.5, 0.2),
     "init_knee_sw": (-0.2, 1.5),  # a running swing knee bends to about 100 deg
-    "init_dv": (-0.5, 2.5),  # the 3.76 m/s runner wang_run_3p75 starts 1.62 m/s above v0
+    "init_dv": (-0.5, 2.5),  # the 3.78 m/s runner wang_run_3p75 starts 1.66 m/s above v0
     "GL_HFL_sw": (0.0, 5.0),  # the swing hip flexor's length gain of the faster runners
 }
 
