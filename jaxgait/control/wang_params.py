@@ -252,7 +252,8 @@ WANG_RUN = widened(WANG, "wang8_run", RUN_RANGES, "; range widened for running (
 #: machine sees contact 10 ms late, and the runners' forefoot slaps down 20-26 ms after heel
 #: strike (experiments/running/landing), so neither a feedback of the ankle nor an excitation
 #: begun at (sensed) touchdown is active in time; stance preparation (d < d_SP) is not entered
-#: by the runners.  s_TA_pre = s_TA_ld = 0 = off: a ``wang8_run`` vector moves alike on
+#: by the runners (their d_SP of -0.71 to -0.85 leg lengths lies beyond where the swing foot
+#: lands).  s_TA_pre = s_TA_ld = 0 = off: a ``wang8_run`` vector moves alike on
 #: ``wang8_run_ld``.
 LANDING_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("s_TA_pre", 0.0, 0.0, 1.0, "TA excitation added in late swing (landing brake)", "-"),
