@@ -262,8 +262,8 @@ class WangSettings:
 @struct.dataclass
 class WangState:
     """Controller state: the sensor delay line, the leg states (2,) int32 (Fig. 4) and the
-    number of steps (2,) int32 each leg has been in stance (STANCE or SI; 0 otherwise), which
-    only the landing brake reads."""
+    number of steps (2,) int32 each leg has been in stance (STANCE or SI; 0 otherwise),
+    counted only by a controller with the landing brake (0 in the others)."""
 
     lines: DelayLine
     phase: jax.Array
@@ -335,9 +335,9 @@ def wang_step(ctrl: Controller, p: dict, sens: Sensors, state: WangState, comman
     ).reshape(n, 2, N_MUSCLES)
     pick = jnp.asarray(MUSCLE_DELAY_GROUP)[None, None, :].repeat(2, 1)
     stim = jnp.take_along_axis(stim, pick, axis=0)[0]
-    in_stance = (phase == STANCE) | (phase == SI)
-    n_stance = jnp.where(in_stance, state.n_stance + 1, 0)
+    n_stance = state.n_stance  # counted only where the brake reads it
     if ctrl.settings.landing_brake:  # d and the states as the state machine sees them (10 ms)
+        n_stance = jnp.where((phase == STANCE) | (phase == SI), n_stance + 1, 0)
         t_stance = n_stance * dt
         brake = landing_brake(
             p["s_TA_pre"], p["d_TA_pre"], p["s_TA_ld"], p["T_ld"], phase, c[:, W_DLEG], t_stance

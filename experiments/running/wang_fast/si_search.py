@@ -59,10 +59,6 @@ def si_table(base=WANG_RUN_CONTROLLER) -> ParamTable:
     )
 
 
-#: ``wang8_run`` with d_SI held within reach.
-SI_TABLE = si_table()
-
-
 def _register(table, muscles=None, base=WANG_RUN_CONTROLLER):
     ctrl = dataclasses.replace(base, name=table.name, table=table)
     models.register(models.planar_spec(ctrl, muscles=muscles))
